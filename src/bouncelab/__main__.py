@@ -1,0 +1,5 @@
+import sys
+
+from bouncelab.cli import main
+
+sys.exit(main())

@@ -1,0 +1,15 @@
+"""``bouncelab extract``: not implemented yet."""
+
+from __future__ import annotations
+
+from bouncelab.errors import BouncelabError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("extract", help="(not implemented yet)")
+    p.add_argument("rest", nargs="*")
+    p.set_defaults(handler=run)
+
+
+def run(args) -> int:
+    raise BouncelabError(None, "'extract' is not implemented yet")

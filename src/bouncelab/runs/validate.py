@@ -1,0 +1,264 @@
+"""Full validation of a run folder, its report, the step table and Gamma gaps.
+
+:func:`validate_run` = :func:`~bouncelab.runs.spec.load_run` (run.yaml, schema, paths)
++ :func:`~bouncelab.runs.readers.read_recording` (header and data checks) + a
+:class:`ValidationReport` of what was found. Nothing is ever written.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from bouncelab.errors import BouncelabError
+from bouncelab.runs.readers import TIME_COLUMN, Recording, read_recording
+from bouncelab.runs.spec import ROLES, Run, load_run
+
+STEP_COLUMNS = ("step", "gamma", "t_start_s", "t_end_s", "n_cycles")
+GAP_FACTOR = 1.5
+
+
+def step_table(run: Run, duration_s: float) -> pd.DataFrame:
+    """One row per Gamma step: when it starts and ends on the recording's time axis.
+
+    A step lasts until the next starts or the recording ends (CONTRACTS.md section 1).
+
+    Parameters
+    ----------
+    run : Run
+    duration_s : float
+        End of the recording, s (:attr:`Recording.duration_s`).
+
+    Returns
+    -------
+    DataFrame
+        Columns ``step`` (int64, index into ``gamma_steps``), ``gamma`` (float64),
+        ``t_start_s``, ``t_end_s`` (float64, s) and ``n_cycles`` (float64, drive
+        cycles in the step; NaN without a drive frequency). Empty (same columns)
+        for runs without steps, e.g. drops.
+    """
+    steps = run.gamma_steps
+    t_start = np.array([t for t, _ in steps], dtype=np.float64)
+    gamma = np.array([g for _, g in steps], dtype=np.float64)
+    t_end = np.append(t_start[1:], float(duration_s)) if steps else np.empty(0)
+    late = np.flatnonzero(t_end <= t_start)
+    if late.size:
+        i = int(late[0])
+        raise BouncelabError(
+            run.yaml_path,
+            f"gamma_steps[{i}] starts at {t_start[i]:g} s, at or after the end of the "
+            f"recording ({duration_s:g} s)",
+        )
+    f = run.drive_frequency_hz if run.drive_frequency_hz is not None else math.nan
+    return pd.DataFrame(
+        {
+            "step": np.arange(len(steps), dtype=np.int64),
+            "gamma": gamma,
+            "t_start_s": t_start,
+            "t_end_s": t_end,
+            "n_cycles": (t_end - t_start) * f,
+        }
+    )
+
+
+def gamma_gaps(gammas, factor: float = GAP_FACTOR) -> list[tuple[float, float]]:
+    """Ranges of Gamma with no step: jumps much larger than the typical spacing.
+
+    The distinct Gamma values are sorted (so up-and-down sweeps count once); a jump
+    between neighbours larger than ``factor`` times the median jump is a gap, e.g. the
+    seed's 1.75-1.95 in a 0.05 grid (4 times the spacing).
+
+    Parameters
+    ----------
+    gammas : array-like, shape (n_steps,)
+    factor : float
+        Threshold relative to the median spacing.
+
+    Returns
+    -------
+    list of (gamma_lo, gamma_hi)
+        The two Gamma values either side of each gap, increasing.
+    """
+    g = np.unique(np.round(np.asarray(gammas, dtype=np.float64), 9))
+    if g.size < 3:  # two values: no typical spacing to compare with
+        return []
+    d = np.diff(g)
+    typical = float(np.median(d))
+    return [(float(g[i]), float(g[i + 1])) for i in np.flatnonzero(d > factor * typical)]
+
+
+@dataclass(frozen=True)
+class ChannelSummary:
+    """Range of one channel: role, where it is in the file, min and max in volts."""
+
+    role: str
+    spec: int | str
+    min_v: float
+    max_v: float
+    dtype: str
+
+
+@dataclass(frozen=True)
+class ValidationReport:
+    """What :func:`validate_run` found in a valid run folder.
+
+    ``steps`` is :func:`step_table`; ``gaps`` the Gamma gaps; ``warnings`` things
+    that are allowed but worth a look (ignored keys, unused ``full_scale_v``, a
+    ``time_s`` spacing that disagrees with ``sample_rate_hz``, steps too short to
+    settle).
+    """
+
+    run: Run
+    fs: float
+    n_samples: int
+    t_start_s: float
+    duration_s: float
+    has_time_column: bool
+    channels: list[ChannelSummary]
+    steps: pd.DataFrame
+    gaps: list[tuple[float, float]]
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict of the report (numbers as Python floats and ints)."""
+        r = self.run
+        steps = self.steps
+        return {
+            "run": r.run_id,
+            "path": str(r.path),
+            "kind": r.kind,
+            "source": r.source,
+            "recording": r.recording_path.name,
+            "format": r.format,
+            "sample_rate_hz": self.fs,
+            "n_samples": self.n_samples,
+            "t_start_s": self.t_start_s,
+            "duration_s": self.duration_s,
+            "time_column": self.has_time_column,
+            "contact_level": r.contact_level,
+            "channels": [
+                {"role": c.role, "channel": c.spec, "min_v": c.min_v, "max_v": c.max_v}
+                for c in self.channels
+            ],
+            "drive_frequency_hz": r.drive_frequency_hz,
+            "n_steps": len(steps),
+            "gamma_min": float(steps["gamma"].min()) if len(steps) else None,
+            "gamma_max": float(steps["gamma"].max()) if len(steps) else None,
+            "gamma_gaps": [list(g) for g in self.gaps],
+            "settle_cycles": r.settle_cycles,
+            "drop_height_m": r.drop_height_m,
+            "release_t_s": r.release_t_s,
+            "mass_kg": r.mass_kg,
+            "warnings": list(self.warnings),
+        }
+
+    def summary(self) -> str:
+        """Human-readable multi-line report (what ``bouncelab validate`` prints)."""
+        r = self.run
+        lines = [f"run        {r.run_id}  ({r.kind}, source: {r.source or 'not stated'})"]
+        time_note = ", time from time_s column" if self.has_time_column else ""
+        lines.append(
+            f"recording  {r.recording_path.name}  ({r.format}, {self.fs:g} Hz, "
+            f"{self.n_samples} samples, {self.duration_s - self.t_start_s:.6g} s{time_note})"
+        )
+        for i, c in enumerate(self.channels):
+            head = "channels   " if i == 0 else "           "
+            lines.append(
+                f"{head}{c.role:<10} {c.spec!s:<16} {c.min_v:+.4g} .. {c.max_v:+.4g} V  ({c.dtype})"
+            )
+        lines.append(f"contact    level {r.contact_level}")
+        if r.mass_kg is not None:
+            lines.append(f"mass       {r.mass_kg:g} kg")
+        if r.kind == "sweep":
+            st = self.steps
+            cyc = st["n_cycles"]
+            lines.append(
+                f"steps      {len(st)}, Gamma {st['gamma'].min():g} .. {st['gamma'].max():g}, "
+                f"drive {r.drive_frequency_hz:g} Hz, {cyc.min():.4g} .. {cyc.max():.4g} cycles "
+                f"per step (first {r.settle_cycles} discarded)"
+            )
+            gaps = ", ".join(f"{lo:g} .. {hi:g}" for lo, hi in self.gaps) or "none"
+            lines.append(f"gaps       Gamma {gaps}")
+        else:
+            lines.append(
+                f"drop       height {r.drop_height_m:g} m, released at t = {r.release_t_s:g} s"
+            )
+        for w in self.warnings:
+            lines.append(f"warning    {w}")
+        lines.append("ok")
+        return "\n".join(lines)
+
+
+def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
+    out = []
+    if run.extra:
+        out.append(f"unknown keys kept and ignored: {', '.join(map(str, run.extra))}")
+    if run.extra_channels:
+        out.append(f"unknown channel roles ignored: {', '.join(map(str, run.extra_channels))}")
+    if not run.is_audio and run.full_scale_v != 1.0:
+        out.append("full_scale_v applies to audio only; ignored for this format")
+    if rec.time_s is not None and rec.n_samples > 1:
+        dt = float(np.median(np.diff(rec.time_s)))
+        if abs(dt * run.sample_rate_hz - 1.0) > 0.01:
+            out.append(
+                f"time_s spacing {dt:.6g} s disagrees with sample_rate_hz "
+                f"{run.sample_rate_hz:g} (1/fs = {1 / run.sample_rate_hz:.6g} s)"
+            )
+    if "accel" in run.channels and run.accel_v_per_g is None:
+        out.append("accel channel without accel_v_per_g: accelerations stay in volts")
+    if run.kind == "drop" and run.gamma_steps:
+        out.append("gamma_steps ignored in a drop run")
+    if run.kind == "sweep" and len(steps):
+        short = steps.index[steps["n_cycles"] <= run.settle_cycles].tolist()
+        if short:
+            out.append(
+                f"{len(short)} step(s) no longer than settle_cycles ({run.settle_cycles} cycles),"
+                f" e.g. step {short[0]}: no settled flights there"
+            )
+    if rec.channels["continuity"].size and np.ptp(rec.channels["continuity"]) == 0:
+        out.append("continuity channel is constant: no contact edges to find")
+    return out
+
+
+def validate_run(run_dir: str | Path) -> ValidationReport:
+    """Check a run folder completely (run.yaml and every sample) and report it.
+
+    Raises
+    ------
+    BouncelabError
+        The first problem found, naming the file (see :func:`load_run` and
+        :func:`read_recording` for the checks).
+    """
+    run = load_run(run_dir)
+    rec = read_recording(run, ROLES)
+    steps = step_table(run, rec.duration_s)
+    channels = [
+        ChannelSummary(
+            role,
+            run.channels[role],
+            float(np.min(arr)),
+            float(np.max(arr)),
+            str(arr.dtype),
+        )
+        for role, arr in rec.channels.items()
+    ]
+    return ValidationReport(
+        run=run,
+        fs=rec.fs,
+        n_samples=rec.n_samples,
+        t_start_s=rec.t_start_s,
+        duration_s=rec.duration_s,
+        has_time_column=rec.time_s is not None,
+        channels=channels,
+        steps=steps,
+        gaps=gamma_gaps(steps["gamma"]) if run.kind == "sweep" else [],
+        warnings=_warnings(run, rec, steps),
+    )
+
+
+__all__ = ["TIME_COLUMN", "ValidationReport", "gamma_gaps", "step_table", "validate_run"]

@@ -1,0 +1,81 @@
+"""``bouncelab validate`` on good runs of every format: exit 0 and what it reports."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from runs_fixtures import DURATION_S, FORMATS, FS, STEPS, known_signals, tree_digest
+
+from bouncelab.cli import main
+from bouncelab.runs import validate_run
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_validate_good_run_every_format(make_run, capsys, fmt):
+    run_dir = make_run(fmt)
+    before = tree_digest(run_dir)
+    assert main(["validate", str(run_dir)]) == 0
+    out, err = capsys.readouterr()
+    assert err == ""
+    assert f"run_{fmt}" in out and "sweep" in out
+    assert f"{FS:g} Hz" in out and f"{int(FS * DURATION_S)} samples" in out
+    for role in ("continuity", "drive", "accel"):
+        assert role in out
+    assert "steps      4, Gamma 0.5 .. 2.5" in out
+    assert out.rstrip().endswith("ok")
+    assert tree_digest(run_dir) == before
+
+
+def test_validate_json_reports_ranges_and_steps(make_run, capsys):
+    sig = known_signals()
+    run_dir = make_run("npz", signals=sig)
+    assert main(["validate", str(run_dir), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["run"] == "run_npz" and doc["format"] == "npz"
+    assert doc["n_steps"] == len(STEPS)
+    assert doc["gamma_min"] == 0.5 and doc["gamma_max"] == 2.5
+    assert doc["duration_s"] == pytest.approx(DURATION_S)
+    ranges = {c["role"]: (c["min_v"], c["max_v"]) for c in doc["channels"]}
+    # reference: the written signal's own extremes (NPZ is exact)
+    for role, v in sig.items():
+        assert ranges[role] == (float(np.min(v)), float(np.max(v)))
+
+
+def test_validate_reports_gamma_gaps(make_run, capsys):
+    gammas = [0.5, 0.6, 0.7, 0.8, 1.1, 1.2, 1.3]  # 0.8 -> 1.1 is 3 times the spacing
+    steps = [{"t_s": 0.5 * i, "gamma": g} for i, g in enumerate(gammas)]
+    run_dir = make_run("csv", yaml_overrides={"gamma_steps": steps})
+    assert main(["validate", str(run_dir)]) == 0
+    out = capsys.readouterr().out
+    assert "gaps       Gamma 0.8 .. 1.1" in out
+    assert "settle_cycles" not in out  # 0.5 s at 25 Hz = 12.5 cycles: longer than 10
+
+
+def test_steps_too_short_to_settle_are_a_warning(make_run):
+    steps = [{"t_s": 0.3 * i, "gamma": 1 + 0.1 * i} for i in range(4)]  # 0.3 s = 7.5 cycles
+    report = validate_run(make_run("csv", yaml_overrides={"gamma_steps": steps}))
+    assert any("3 step(s) no longer than settle_cycles" in w for w in report.warnings)
+
+
+def test_validate_drop_run(make_run, capsys):
+    run_dir = make_run("tdms", kind="drop")
+    assert main(["validate", str(run_dir)]) == 0
+    out = capsys.readouterr().out
+    assert "drop       height 0.05 m, released at t = 0.5 s" in out
+
+
+def test_validate_warns_about_ignored_things(make_run):
+    run_dir = make_run("csv", yaml_overrides={"full_scale_v": 2.0, "operator": "ana"})
+    report = validate_run(run_dir)
+    text = " ".join(report.warnings)
+    assert "operator" in text and "full_scale_v" in text
+    assert "accel_v_per_g" in text  # accel channel without a sensitivity
+
+
+def test_time_column_spacing_mismatch_is_a_warning(make_run):
+    t = np.arange(int(FS * DURATION_S)) / (2 * FS)  # spacing says 4 kHz, run.yaml says 2 kHz
+    steps = [{"t_s": 0.0, "gamma": 1.0}]
+    report = validate_run(make_run("csv", time_s=t, yaml_overrides={"gamma_steps": steps}))
+    assert any("time_s spacing" in w for w in report.warnings)

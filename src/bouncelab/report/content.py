@@ -1,0 +1,462 @@
+"""Assemble the report's content (sections of blocks) from the pipeline's results.
+
+Everything shown is read from files the workflow wrote under ``results/``: per-run
+check verdicts, figures and their JSON data, calibrations, gap tables, energy budgets,
+diagnoses. Paths follow the workflow's layout (``workflow/rules/*.smk``). A missing
+piece gives a note in the report, never a crash: a run that failed its check is listed
+with its error.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import platform
+import subprocess
+from importlib import metadata
+from pathlib import Path
+
+import yaml
+
+from bouncelab import __version__
+from bouncelab.energy import seed_energy_reconstruction
+from bouncelab.report.claims import claims_table
+from bouncelab.report.errata import ERRATA
+
+#: figure file stem -> title shown in the report
+FIGURE_TITLES = {
+    "fig01_takeoff_line": "Fig. 1 - plate motion and the takeoff line",
+    "fig02_bifurcation_ideal": "Fig. 2 - bifurcation diagram of the ideal model",
+    "fig03_rig": "Fig. 3 - the rig",
+    "fig04_accelerometer": "Fig. 4 - the accelerometer method",
+    "fig05_continuity": "Fig. 5 - continuity signal and detected flights",
+    "fig06_drop_test": "Fig. 6 - drop test",
+    "fig07_bifurcation": "Fig. 7 - bifurcation diagrams, data and model",
+    "fig08_return_maps": "Fig. 8 - return maps",
+    "fig09_friction": "Fig. 9 - the model with and without friction",
+    "fig10_harmonic": "Fig. 10 - the harmonic model",
+    "gap_over_gamma": "Gap over Gamma",
+    "energy_budget": "Energy budget",
+}
+
+SWEEP_FIGURE_ORDER = [
+    "fig03_rig",
+    "fig05_continuity",
+    "fig04_accelerometer",
+    "fig07_bifurcation",
+    "fig08_return_maps",
+    "fig09_friction",
+    "fig10_harmonic",
+    "gap_over_gamma",
+    "energy_budget",
+]
+
+
+def read_caption(captions_dir: Path, stem: str) -> tuple[str, str]:
+    """(seed, here) text of a figure's caption file ``<stem>.rst`` ("Seed: ...", "Here: ...")."""
+    path = captions_dir / f"{stem}.rst"
+    if not path.is_file():
+        return "", ""
+    seed, here = "", ""
+    for para in path.read_text().split("\n\n"):
+        para = " ".join(para.split())
+        if para.startswith("Seed:"):
+            seed = para[len("Seed:") :].strip()
+        elif para.startswith("Here:"):
+            here = para[len("Here:") :].strip()
+    return seed, here
+
+
+def _read_json(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def figure_block(png: Path, stem: str, captions_dir: Path, label: str = "") -> dict | None:
+    """A figure block from a PNG and its JSON, or None if the PNG is missing."""
+    if not png.is_file():
+        return None
+    seed, here = read_caption(captions_dir, stem)
+    data = _read_json(png.with_suffix(".json")) or {}
+    summary = data.get("summary")
+    ours = here + (f" {summary[0].upper()}{summary[1:]}" if summary else "")
+    title = FIGURE_TITLES.get(stem, stem) + (f" ({label})" if label else "")
+    return {
+        "type": "figure",
+        "id": f"{stem}-{label}" if label else stem,
+        "title": title,
+        "path": str(png),
+        "seed": seed,
+        "ours": ours,
+    }
+
+
+def fmt(x, digits: int = 4) -> str:
+    """Number for a table cell: significant digits, '-' for missing."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    if isinstance(x, float):
+        return f"{x:.{digits}g}"
+    return str(x)
+
+
+def git_revision(repo: Path) -> str:
+    """The checkout's revision (with '+dirty' for uncommitted changes), or 'unknown'."""
+    try:
+        rev = subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"],
+            cwd=repo,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=repo,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return rev + ("+dirty" if dirty else "")
+
+
+def package_versions() -> list[list[str]]:
+    """Rows (package, version) of what computed the results."""
+    rows = [["python", platform.python_version()], ["bouncelab", __version__]]
+    for name in (
+        "numpy",
+        "scipy",
+        "numba",
+        "pandas",
+        "pyarrow",
+        "matplotlib",
+        "jinja2",
+        "snakemake",
+        "soundfile",
+        "npTDMS",
+        "typst",
+    ):
+        try:
+            rows.append([name, metadata.version(name)])
+        except metadata.PackageNotFoundError:
+            rows.append([name, "not installed"])
+    return rows
+
+
+def file_hashes(raw_dir: Path, runs: list[str]) -> list[list[str]]:
+    """Rows (file, size, sha256 prefix) of every input file of the given runs."""
+    rows = []
+    for run in runs:
+        folder = raw_dir / run
+        if not folder.is_dir():
+            continue
+        for p in sorted(folder.iterdir()):
+            if p.is_file():
+                h = hashlib.sha256()
+                with p.open("rb") as fh:
+                    for chunk in iter(lambda: fh.read(1 << 20), b""):
+                        h.update(chunk)
+                rows.append([f"{run}/{p.name}", str(p.stat().st_size), h.hexdigest()[:16]])
+    return rows
+
+
+def runs_table(checks: dict[str, dict]) -> dict:
+    """Overview of every run: kind, source, duration, steps, Gamma range, gaps, status."""
+    rows = []
+    for run, v in checks.items():
+        info = v.get("info") or {}
+        gaps = ", ".join(f"{lo:g}-{hi:g}" for lo, hi in info.get("gamma_gaps") or []) or "-"
+        rng = (
+            f"{info['gamma_min']:g}-{info['gamma_max']:g}"
+            if info.get("gamma_min") is not None
+            else "-"
+        )
+        rows.append(
+            [
+                run,
+                info.get("kind", "?"),
+                info.get("source") or "-",
+                fmt(info.get("duration_s"), 4),
+                str(info.get("n_steps", "-")) if info.get("kind") == "sweep" else "-",
+                rng if info.get("kind") == "sweep" else "-",
+                gaps if info.get("kind") == "sweep" else "-",
+                "ok" if v.get("ok") else "FAILED",
+            ]
+        )
+    return {
+        "type": "table",
+        "caption": "Runs found under raw/",
+        "header": ["run", "kind", "source", "duration (s)", "steps", "Gamma", "gaps", "check"],
+        "rows": rows,
+    }
+
+
+def calibration_rows(results: Path, drops: list[str]) -> list[list[str]]:
+    rows = []
+    for run in drops:
+        cal = _read_json(results / "runs" / run / "calibration.json")
+        if not cal:
+            continue
+        rows.append(
+            [
+                run,
+                f"{cal['mu']:.4f} [{cal['mu_ci'][0]:.4f}, {cal['mu_ci'][1]:.4f}]",
+                f"{cal['restitution']:.4f} "
+                f"[{cal['restitution_ci'][0]:.4f}, {cal['restitution_ci'][1]:.4f}]",
+                str(cal["n_bounces"]),
+            ]
+        )
+    return rows
+
+
+def diagnosis_blocks(results: Path, run: str) -> list[dict]:
+    """The gap diagnosis of a sweep run, or a note saying it has not been computed."""
+    diag = _read_json(results / "runs" / run / "diagnosis.json")
+    if not diag:
+        return [
+            {
+                "type": "note",
+                "text": "Gap diagnosis: not computed for this run (the diagnosis stage is not "
+                "part of this build).",
+            }
+        ]
+    rows = [
+        [
+            s["effect"],
+            json.dumps(s.get("params", {}), sort_keys=True),
+            fmt(s["gap"]),
+            fmt(s["shrink"]),
+        ]
+        for s in diag.get("steps", [])
+    ]
+    blocks = [
+        {
+            "type": "text",
+            "text": (
+                f"Baseline {diag['baseline']['model']}: gap {fmt(diag['baseline']['gap'])} "
+                f"(noise floor {fmt(diag['noise_floor'])}). Selected: "
+                f"{', '.join(diag.get('selected') or []) or 'none'}; final gap "
+                f"{fmt(diag.get('final_gap'))}; "
+                + ("unexplained." if diag.get("unexplained") else "explained.")
+            ),
+        }
+    ]
+    if rows:
+        blocks.append(
+            {
+                "type": "table",
+                "caption": "Effects accepted, in order",
+                "header": ["effect", "parameters", "gap", "shrink"],
+                "rows": rows,
+            }
+        )
+    return blocks
+
+
+def build_context(
+    results_dir,
+    raw_dir,
+    runs: list[str],
+    config: dict,
+    captions_dir,
+    bad_names: list[str] = (),
+    repo_dir=".",
+) -> dict:
+    """The full report context for :mod:`bouncelab.report.render`."""
+    results = Path(results_dir)
+    raw = Path(raw_dir)
+    captions = Path(captions_dir)
+    figs = results / "figures"
+    checks = {
+        run: _read_json(results / "runs" / run / "check.json")
+        or {"ok": False, "error": "check not run"}
+        for run in runs
+    }
+    ok_runs = [r for r, v in checks.items() if v.get("ok")]
+    kind = {r: (checks[r].get("info") or {}).get("kind") for r in ok_runs}
+    sweeps = [r for r in ok_runs if kind[r] == "sweep"]
+    drops = [r for r in ok_runs if kind[r] == "drop"]
+    failed = [(r, v.get("error", "")) for r, v in checks.items() if not v.get("ok")]
+    failed += [
+        (name, "folder name outside the pattern [A-Za-z0-9][A-Za-z0-9_.-]*") for name in bad_names
+    ]
+
+    sections = []
+    sections.append(
+        {
+            "id": "summary",
+            "title": "Summary",
+            "blocks": [
+                {
+                    "type": "text",
+                    "text": (
+                        "This report rebuilds the figures of the seed paper (a laboratory "
+                        "investigation of the completely inelastic bouncing ball) from raw "
+                        f"continuity recordings: {len(sweeps)} sweep run(s) and {len(drops)} "
+                        f"drop run(s) under raw/, with {len(failed)} run(s) that could not be "
+                        "used. Each model variant is simulated under each run's own protocol "
+                        "(its Gamma steps, drive frequency and settle cycles, the state carried "
+                        "over from step to step) and compared with the measured flights."
+                    ),
+                },
+                runs_table(checks),
+            ],
+        }
+    )
+    sections.append(
+        {
+            "id": "claims",
+            "title": "The seed's claims beside our values",
+            "blocks": [claims_table(results, sweeps, drops, checks)],
+        }
+    )
+    sections.append(
+        {
+            "id": "errata",
+            "title": "Errata: the seed's equations, corrected",
+            "blocks": [
+                {
+                    "type": "text",
+                    "text": "The seed's equations carry typos; the code uses the corrected "
+                    "forms below (nondimensional: phase phi = omega t, height chi = x omega^2/g, "
+                    "Gamma = A omega^2/g).",
+                },
+                {
+                    "type": "table",
+                    "caption": "Equations as printed in the seed and as coded here",
+                    "header": ["seed", "corrected", "why"],
+                    "rows": [[e["seed"], e["corrected"], e["note"]] for e in ERRATA],
+                },
+            ],
+        }
+    )
+    model_blocks = [
+        figure_block(figs / f"{stem}.png", stem, captions)
+        for stem in ("fig01_takeoff_line", "fig02_bifurcation_ideal")
+    ]
+    sections.append({"id": "model", "title": "The model", "blocks": [b for b in model_blocks if b]})
+
+    meas = []
+    for run in drops:
+        for stem in ("fig03_rig", "fig06_drop_test"):
+            b = figure_block(figs / run / f"{stem}.png", stem, captions, run)
+            if b:
+                meas.append(b)
+    cal_rows = calibration_rows(results, drops)
+    if cal_rows:
+        meas.append(
+            {
+                "type": "table",
+                "caption": "Drop-test calibration (95 % bootstrap intervals)",
+                "header": ["run", "friction mu", "restitution e", "bounces"],
+                "rows": cal_rows,
+            }
+        )
+    if not drops:
+        meas.append({"type": "note", "text": "No drop run: models use the seed's mu and e."})
+    sections.append({"id": "calibration", "title": "Drop tests and calibration", "blocks": meas})
+
+    for run in sweeps:
+        blocks = []
+        info = checks[run].get("info") or {}
+        blocks.append(
+            {
+                "type": "text",
+                "text": (
+                    f"Run {run}: {info.get('n_steps', '?')} Gamma steps from "
+                    f"{fmt(info.get('gamma_min'))} to {fmt(info.get('gamma_max'))} at "
+                    f"{fmt(info.get('drive_frequency_hz'))} Hz, "
+                    f"{fmt(info.get('duration_s'))} s recorded "
+                    f"({info.get('source') or 'source not stated'})."
+                ),
+            }
+        )
+        for stem in SWEEP_FIGURE_ORDER:
+            b = figure_block(figs / run / f"{stem}.png", stem, captions, run)
+            if b:
+                blocks.append(b)
+        blocks.append({"type": "heading", "id": f"diag-{run}", "text": "Gap diagnosis"})
+        blocks.extend(diagnosis_blocks(results, run))
+        sections.append({"id": f"run-{run}", "title": f"Sweep run {run}", "blocks": blocks})
+
+    energy_rows = [
+        [r["quantity"], fmt(r["seed_j"]), fmt(r["value_j"]), r["assumption"]]
+        for r in seed_energy_reconstruction()
+    ]
+    sections.append(
+        {
+            "id": "energy",
+            "title": "The seed's energy numbers, reconstructed",
+            "blocks": [
+                {
+                    "type": "text",
+                    "text": (
+                        "The seed gives two numbers at Gamma = 3.4 for a flight of T = 0.11 s "
+                        "(m = 249 g, mu = 0.29, e = 0.515) without a derivation. Each row is one "
+                        "reading of it, computed here (g = 9.81 m/s^2). The friction number is "
+                        "reproduced by the difference in landing kinetic energy between an ideal "
+                        "flight and a friction flight of the same duration; the energy friction "
+                        "actually dissipates in that flight (mu m g times the path) is larger. "
+                        "The restitution number is close to the rebound energy of a fall lasting "
+                        "half the flight; it is energy the inelastic model would not return, and "
+                        "it is indeed smaller than the friction loss, as the seed says."
+                    ),
+                },
+                {
+                    "type": "table",
+                    "caption": "Seed energy numbers (J) and their reconstructions",
+                    "header": ["quantity", "seed (J)", "reconstructed (J)", "assumption"],
+                    "rows": energy_rows,
+                },
+            ],
+        }
+    )
+
+    fail_blocks = (
+        [
+            {
+                "type": "table",
+                "caption": "Runs that could not be used",
+                "header": ["run", "error"],
+                "rows": [[r, e] for r, e in failed],
+            }
+        ]
+        if failed
+        else [{"type": "text", "text": "Every run under raw/ passed its check."}]
+    )
+    sections.append({"id": "failed", "title": "Failed runs", "blocks": fail_blocks})
+
+    sections.append(
+        {
+            "id": "provenance",
+            "title": "Provenance",
+            "blocks": [
+                {
+                    "type": "table",
+                    "caption": "Software",
+                    "header": ["package", "version"],
+                    "rows": package_versions(),
+                },
+                {
+                    "type": "table",
+                    "caption": "Input files (sha256, first 16 hex digits)",
+                    "header": ["file", "bytes", "sha256"],
+                    "rows": file_hashes(raw, runs),
+                },
+                {"type": "heading", "id": "prov-config", "text": "Configuration"},
+                {"type": "code", "text": yaml.safe_dump(config, sort_keys=True)},
+            ],
+        }
+    )
+    return {
+        "title": "bouncelab report",
+        "subtitle": "The bouncing ball on a vibrating plate: data, models and the gap between them",
+        "version": __version__,
+        "git_revision": git_revision(Path(repo_dir)),
+        "sections": sections,
+    }

@@ -1,0 +1,129 @@
+# Run discovery and the functions that turn the run list into job inputs.
+#
+# Only run.yaml is read here (tolerantly), so building the DAG stays fast. A run whose
+# run.yaml is broken still gets its check and extract jobs: they fail with the run's own
+# clear error under --keep-going, while the report depends only on runs whose check
+# (a checkpoint) passed and lists the others with their error.
+
+import json
+import re
+from pathlib import Path
+
+import yaml
+
+RAW = Path(config["raw_dir"])
+RES = Path(config["results_dir"])
+RUN_ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+
+
+def _peek_run_yaml(run_dir):
+    """run.yaml as a dict, or {} when it cannot be parsed (the check job says why)."""
+    try:
+        meta = yaml.safe_load((run_dir / "run.yaml").read_text())
+    except Exception:
+        return {}
+    return meta if isinstance(meta, dict) else {}
+
+
+RUNS = {
+    p.parent.name: _peek_run_yaml(p.parent)
+    for p in sorted(RAW.glob("*/run.yaml"))
+    if RUN_ID_RE.match(p.parent.name)
+}
+# Folders whose name breaks the contract's pattern get no jobs; the report lists them.
+BAD_NAMES = sorted(
+    p.parent.name for p in RAW.glob("*/run.yaml") if not RUN_ID_RE.match(p.parent.name)
+)
+SWEEPS = [r for r, m in RUNS.items() if m.get("kind") == "sweep"]
+DROPS = [r for r, m in RUNS.items() if m.get("kind") == "drop"]
+ACCEL_RUNS = [r for r, m in RUNS.items() if "accel" in (m.get("channels") or {})]
+VARIANTS = list(config["variants"])
+
+
+wildcard_constraints:
+    run="|".join(re.escape(r) for r in RUNS) or "NO_RUNS",
+    variant="|".join(re.escape(v) for v in VARIANTS),
+
+
+def run_ok(run):
+    """True when the run's check passed (evaluated after the checkpoint ran)."""
+    with open(checkpoints.check_run.get(run=run).output[0]) as fh:
+        return json.load(fh)["ok"]
+
+
+def calibration_run_for(sweep):
+    """The drop run whose calibration feeds this sweep's models, or None."""
+    cal = config.get("calibration", {})
+    if cal.get("source", "auto") == "none":
+        return None
+    pinned = cal.get("pin", {}).get(sweep)
+    if pinned:
+        return pinned
+    if not DROPS:
+        return None
+
+    def shared_prefix(drop):
+        n = 0
+        for a, b in zip(drop, sweep):
+            if a != b:
+                break
+            n += 1
+        return n
+
+    return max(sorted(DROPS), key=shared_prefix)
+
+
+def calibration_input(wildcards):
+    """Calibration JSON for a sweep's models: [] when none (defaults are used)."""
+    drop = calibration_run_for(wildcards.run)
+    if drop is None or drop not in DROPS or not run_ok(drop):
+        return []
+    return [f"{RES}/runs/{drop}/calibration.json"]
+
+
+def sweep_products(run):
+    """Every per-run output of a sweep run that the report uses."""
+    out = [
+        f"{RES}/runs/{run}/flights.parquet",
+        f"{RES}/runs/{run}/compare.parquet",
+        f"{RES}/runs/{run}/energy.parquet",
+    ]
+    out += [f"{RES}/runs/{run}/sim/{v}.parquet" for v in VARIANTS]
+    out += [f"{RES}/figures/{run}/{fig}.png" for fig in SWEEP_FIGURES]
+    if run in ACCEL_RUNS:
+        out.append(f"{RES}/figures/{run}/fig04_accelerometer.png")
+    return out
+
+
+def drop_products(run):
+    return [
+        f"{RES}/runs/{run}/flights.parquet",
+        f"{RES}/runs/{run}/calibration.json",
+        f"{RES}/figures/{run}/fig06_drop_test.png",
+        f"{RES}/figures/{run}/fig03_rig.png",
+    ]
+
+
+def products_of_valid_runs(wildcards):
+    """Outputs of every run that passed its check (what the report is built from)."""
+    out = []
+    for run in SWEEPS:
+        if run_ok(run):
+            out += sweep_products(run)
+    for run in DROPS:
+        if run_ok(run):
+            out += drop_products(run)
+    return out
+
+
+def all_run_targets(wildcards):
+    """What `rule all` asks of every run, valid or not.
+
+    A broken run's extract job is requested too, so that it fails with the run's own
+    error (visible under --keep-going) instead of silently vanishing.
+    """
+    out = [f"{RES}/runs/{run}/check.json" for run in RUNS]
+    for run in RUNS:
+        if not run_ok(run):
+            out.append(f"{RES}/runs/{run}/flights.parquet")
+    return out

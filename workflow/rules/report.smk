@@ -1,0 +1,28 @@
+# Stage 5: the report, HTML (self-contained) and PDF (typst), from one set of jinja2
+# templates under report/. It depends only on runs whose check passed; the others are
+# listed in it with their error.
+
+
+rule report:
+    input:
+        checks=expand(f"{RES}/runs/{{run}}/check.json", run=list(RUNS)),
+        products=products_of_valid_runs,
+        model_figures=[
+            f"{FIG}/fig01_takeoff_line.png",
+            f"{FIG}/fig02_bifurcation_ideal.png",
+        ],
+        templates=sorted(str(p) for p in Path("report").rglob("*") if p.is_file()),
+        config="config/config.yaml",
+    output:
+        html=f"{RES}/report/report.html",
+        pdf=f"{RES}/report/report.pdf",
+    log:
+        f"{RES}/logs/report.log",
+    params:
+        raw_dir=str(RAW),
+        results_dir=str(RES),
+        runs=list(RUNS),
+        bad_names=BAD_NAMES,
+        config=config,
+    script:
+        "../scripts/build_report.py"

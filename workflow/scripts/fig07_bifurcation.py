@@ -1,0 +1,13 @@
+"""Snakemake glue: seed fig. 7, data and ideal model under the run's protocol."""
+
+from bouncelab.figures import fig07_bifurcation
+from bouncelab.figures.style import house_style, save_figure
+from bouncelab.tables import read_table
+
+with house_style():
+    fig, data = fig07_bifurcation.make(
+        read_table(snakemake.input.flights),
+        read_table(snakemake.input.model),
+        snakemake.wildcards.run,
+    )
+save_figure(fig, snakemake.output.png, data, snakemake.output.data, dpi=snakemake.params.dpi)

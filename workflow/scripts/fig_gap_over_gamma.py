@@ -1,0 +1,9 @@
+"""Snakemake glue: the gap between data and every model variant over Gamma."""
+
+from bouncelab.figures import fig_gap_over_gamma
+from bouncelab.figures.style import house_style, save_figure
+from bouncelab.tables import read_table
+
+with house_style():
+    fig, data = fig_gap_over_gamma.make(read_table(snakemake.input[0]), snakemake.wildcards.run)
+save_figure(fig, snakemake.output.png, data, snakemake.output.data, dpi=snakemake.params.dpi)

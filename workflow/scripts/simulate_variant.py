@@ -1,0 +1,16 @@
+"""Snakemake glue: one model variant under one sweep run's protocol."""
+
+from bouncelab.pipeline import simulate_variant
+from bouncelab.tables import write_table
+
+calibration = snakemake.input.calibration[0] if snakemake.input.calibration else None
+table = simulate_variant(
+    snakemake.params.run_dir,
+    snakemake.params.variant,
+    calibration_path=calibration,
+    defaults=snakemake.params.defaults,
+    n_starts=snakemake.params.starts,
+    seed=snakemake.params.seed,
+    log_path=snakemake.log[0],
+)
+write_table(table, snakemake.output[0])

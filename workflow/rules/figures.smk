@@ -49,6 +49,7 @@ rule fig02_bifurcation_ideal:
     log:
         f"{RES}/logs/figures/fig02_bifurcation_ideal.log",
     params:
+        grid=config["figures"]["bifurcation_gamma"],
         dpi=DPI,
     script:
         "../scripts/fig02_bifurcation_ideal.py"

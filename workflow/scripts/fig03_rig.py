@@ -1,9 +1,12 @@
 """Snakemake glue: seed fig. 3, the rig schematic with the run's parameters."""
 
 import json
+import sys
 
 from bouncelab.figures import fig03_rig
 from bouncelab.figures.style import house_style, save_figure
+
+sys.stderr = open(snakemake.log[0], "w")  # tracebacks go to the rule's log
 
 with open(snakemake.input.check) as fh:
     info = json.load(fh)["info"]

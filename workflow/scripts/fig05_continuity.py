@@ -1,11 +1,15 @@
 """Snakemake glue: seed fig. 5, a stretch of the continuity channel with detected flights."""
 
+import sys
+
 import numpy as np
 
 from bouncelab.figures import fig05_continuity
 from bouncelab.figures.style import house_style, save_figure
 from bouncelab.runs import load_run, read_recording
 from bouncelab.tables import read_table
+
+sys.stderr = open(snakemake.log[0], "w")  # tracebacks go to the rule's log
 
 flights = read_table(snakemake.input.flights)
 run = load_run(snakemake.params.run_dir)

@@ -1,8 +1,12 @@
 """Snakemake glue: seed fig. 9, the model with and without friction over the data."""
 
+import sys
+
 from bouncelab.figures import fig09_friction
 from bouncelab.figures.style import house_style, save_figure
 from bouncelab.tables import read_table
+
+sys.stderr = open(snakemake.log[0], "w")  # tracebacks go to the rule's log
 
 friction = read_table(snakemake.input.friction)
 mu = float(friction["mu"].iloc[0]) if "mu" in friction and len(friction) else None

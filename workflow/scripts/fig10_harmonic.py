@@ -1,8 +1,12 @@
 """Snakemake glue: seed fig. 10, the harmonic model over the data."""
 
+import sys
+
 from bouncelab.figures import fig10_harmonic
 from bouncelab.figures.style import house_style, save_figure
 from bouncelab.tables import read_table
+
+sys.stderr = open(snakemake.log[0], "w")  # tracebacks go to the rule's log
 
 harmonic = read_table(snakemake.input.harmonic)
 params = {

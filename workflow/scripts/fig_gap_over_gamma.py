@@ -1,8 +1,12 @@
 """Snakemake glue: the gap between data and every model variant over Gamma."""
 
+import sys
+
 from bouncelab.figures import fig_gap_over_gamma
 from bouncelab.figures.style import house_style, save_figure
 from bouncelab.tables import read_table
+
+sys.stderr = open(snakemake.log[0], "w")  # tracebacks go to the rule's log
 
 with house_style():
     fig, data = fig_gap_over_gamma.make(read_table(snakemake.input[0]), snakemake.wildcards.run)

@@ -11,8 +11,11 @@ from bouncelab.figures.bifurcation import TWO_PI, scatter_bifurcation, step_medi
 from bouncelab.figures.style import MODEL_COLOR, new_figure
 
 
-def make(sim: pd.DataFrame):
+def make(sim: pd.DataFrame, gamma_range: tuple[float, float] = (0.0, 8.0)):
     """Figure and data from an ideal-model grid (``gamma``, ``T`` columns, one Gamma each).
+
+    ``gamma_range``: the Gamma axis (the grid simulated; below Gamma = 1 there are no
+    flights, which the empty left part shows).
 
     Data: per-Gamma median flight time in periods, the locking thresholds
     Gamma_n = sqrt(1 + n^2 pi^2) drawn as references, and the share of Gammas whose
@@ -24,7 +27,7 @@ def make(sim: pd.DataFrame):
         g_lock = math.sqrt(1.0 + (k * math.pi) ** 2)
         ax.axvline(g_lock, color="0.5", lw=0.6, ls=":")
         ax.text(g_lock, 0.02, rf" $\Gamma_{k}$", transform=ax.get_xaxis_transform(), fontsize=7)
-    ax.set_xlim(float(sim["gamma"].min()), float(sim["gamma"].max()))
+    ax.set_xlim(*gamma_range)
     ax.set_ylim(0, max(2.5, float(np.quantile(sim["T"] / TWO_PI, 0.999)) * 1.05))
     ax.set_title("Ideal model: flight time against reduced acceleration")
     fig.tight_layout()

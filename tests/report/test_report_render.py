@@ -1,0 +1,72 @@
+"""The report renderer: typst escaping, a self-contained HTML, deterministic output."""
+
+from pathlib import Path
+
+import matplotlib
+import pytest
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from bouncelab.report.render import render_html, render_pdf, typst_escape  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+TEMPLATES = REPO / "report" / "templates"
+CSS = REPO / "report" / "style.css"
+
+# text with every character that means something in typst markup or HTML
+NASTY = "a_b *c* #d $e$ @f <g> [h] ~i // j /* k */ = l - m + n 'o' \"p\" & q \\ r"
+
+
+@pytest.fixture
+def context(tmp_path):
+    fig, ax = plt.subplots(figsize=(2, 1.5))
+    ax.plot([0, 1], [0, 1])
+    png = tmp_path / "figures" / "f.png"
+    png.parent.mkdir()
+    fig.savefig(png, metadata={"Software": None})
+    plt.close(fig)
+    blocks = [
+        {"type": "text", "text": NASTY},
+        {"type": "note", "text": "= " + NASTY},
+        {"type": "heading", "id": "h", "text": NASTY},
+        {"type": "equation", "text": "T^2/2 = Gamma sin(phi_0)", "note": NASTY},
+        {"type": "figure", "id": "f", "title": "F", "path": str(png), "seed": NASTY, "ours": NASTY},
+        {"type": "table", "caption": NASTY, "header": ["a", "b"], "rows": [[NASTY, "-1"]]},
+        {"type": "code", "text": "key: value\n# comment ``` fence"},
+    ]
+    return {
+        "title": "t",
+        "subtitle": NASTY,
+        "version": "0",
+        "git_revision": "abc",
+        "sections": [{"id": "s", "title": NASTY, "blocks": blocks}],
+    }
+
+
+def test_typst_escape_leaves_no_markup():
+    out = typst_escape("#a_b*")
+    assert out == "\\#a\\_b\\*"
+
+
+def test_pdf_compiles_with_every_special_character(tmp_path, context):
+    pdf = render_pdf(context, TEMPLATES, tmp_path / "report" / "r.pdf", root=tmp_path)
+    data = pdf.read_bytes()
+    assert data.startswith(b"%PDF")
+    assert len(data) > 5000
+
+
+def test_html_is_self_contained_and_escaped(tmp_path, context):
+    html = render_html(context, TEMPLATES, tmp_path / "report" / "r.html", CSS).read_text()
+    assert "data:image/png;base64," in html
+    assert 'src="http' not in html and "<link" not in html  # opens offline
+    assert "<g>" not in html and "&lt;g&gt;" in html  # user text is escaped
+
+
+def test_rendering_is_deterministic(tmp_path, context):
+    a = render_pdf(context, TEMPLATES, tmp_path / "report" / "a.pdf", root=tmp_path).read_bytes()
+    b = render_pdf(context, TEMPLATES, tmp_path / "report" / "b.pdf", root=tmp_path).read_bytes()
+    assert a == b
+    h1 = render_html(context, TEMPLATES, tmp_path / "report" / "a.html", CSS).read_bytes()
+    h2 = render_html(context, TEMPLATES, tmp_path / "report" / "b.html", CSS).read_bytes()
+    assert h1 == h2

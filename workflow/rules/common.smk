@@ -127,3 +127,36 @@ def all_run_targets(wildcards):
         if not run_ok(run):
             out.append(f"{RES}/runs/{run}/flights.parquet")
     return out
+
+
+def run_files(wildcards):
+    """Every file of the run folder, so that editing a run reruns its jobs."""
+    return sorted(str(p) for p in (RAW / wildcards.run).iterdir() if p.is_file())
+
+
+SWEEP_FIGURES = [
+    "fig03_rig",
+    "fig05_continuity",
+    "fig07_bifurcation",
+    "fig08_return_maps",
+    "fig09_friction",
+    "fig10_harmonic",
+    "gap_over_gamma",
+    "energy_budget",
+]
+FIG = f"{RES}/figures"
+DPI = config["figures"]["dpi"]
+
+
+def figure_output(name, category, run=True):
+    """PNG (marked for Snakemake's report) and the JSON of its numbers."""
+    folder = f"{FIG}/{{run}}" if run else FIG
+    return {
+        "png": report(
+            f"{folder}/{name}.png",
+            caption=f"../report/{name}.rst",
+            category=category,
+            subcategory="{run}" if run else None,
+        ),
+        "data": f"{folder}/{name}.json",
+    }

@@ -2,33 +2,6 @@
 # PNG plus a JSON of the numbers it shows, which the tests check against references.
 # Captions (what the seed showed, what this figure shows) sit in workflow/report/.
 
-SWEEP_FIGURES = [
-    "fig03_rig",
-    "fig05_continuity",
-    "fig07_bifurcation",
-    "fig08_return_maps",
-    "fig09_friction",
-    "fig10_harmonic",
-    "gap_over_gamma",
-    "energy_budget",
-]
-FIG = f"{RES}/figures"
-DPI = config["figures"]["dpi"]
-
-
-def figure_output(name, category, run=True):
-    """PNG (marked for Snakemake's report) and the JSON of its numbers."""
-    folder = f"{FIG}/{{run}}" if run else FIG
-    return {
-        "png": report(
-            f"{folder}/{name}.png",
-            caption=f"../report/{name}.rst",
-            category=category,
-            subcategory="{run}" if run else None,
-        ),
-        "data": f"{folder}/{name}.json",
-    }
-
 
 rule fig01_takeoff_line:
     output:

@@ -20,7 +20,8 @@ rule report:
         f"{RES}/logs/report.log",
     params:
         raw_dir=str(RAW),
-        results_dir=str(RES),
+        # the results folder, from the output path: <results>/report/report.html
+        results_dir=lambda wildcards, output: str(Path(output.html).parents[1]),
         runs=list(RUNS),
         bad_names=BAD_NAMES,
         config=config,

@@ -1,11 +1,6 @@
 # Stage 1: each raw run is checked, its flights extracted, drop runs calibrated.
 
 
-def run_files(wildcards):
-    """Every file of the run folder, so that editing a run reruns its jobs."""
-    return sorted(str(p) for p in (RAW / wildcards.run).iterdir() if p.is_file())
-
-
 checkpoint check_run:
     input:
         run_files,

@@ -1,0 +1,171 @@
+"""Friction and restitution from a ``drop`` run (CONTRACTS.md section 4).
+
+Model (SI; docs/flights.md).  The mass falls from rest at height ``h`` under Coulomb
+friction ``mu`` (a fraction of its weight) on the guide: effective gravity ``g(1-mu)``
+going down, ``g(1+mu)`` going up.  Hence
+
+* first fall, release to first contact: ``t0 = sqrt(2 h / (g (1 - mu)))``, impact speed
+  ``v_in = g (1 - mu) t0``;
+* a flight that starts with upward speed ``v`` lasts
+  ``F(v) = v / (g (1 + mu)) + v / (g sqrt(1 - mu^2))`` and lands with speed
+  ``v sqrt((1 - mu) / (1 + mu))``;
+* each impact returns ``e`` times the impact speed, so the n-th flight (n = 1, 2, ...)
+  has ``v_n = e v_in r^(n-1)`` with ``r = e sqrt((1 - mu) / (1 + mu))``, the ratio of
+  successive flights.
+
+The fall time and the bounce flights are fitted jointly by least squares in seconds
+(each measured time counts equally; the timing error is the same for all).  95 %
+intervals come from a residual bootstrap: the fitted times plus residuals drawn with
+replacement (seeded), refitted ``n_boot`` times, 2.5th and 97.5th percentiles.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from bouncelab.errors import BouncelabError
+
+G_STANDARD = 9.80665  # m/s^2
+MIN_FLIGHT_S = 2e-3  # shorter flights: chatter, where contact compliance matters
+MIN_BOUNCES = 3
+
+
+def model_times(mu: float, e: float, h_m: float, n_flights: int, g: float = G_STANDARD):
+    """Fall time and the first ``n_flights`` bounce flight times, s: shape (1 + n_flights,).
+
+    ``mu`` fraction of the weight, ``e`` restitution, ``h_m`` drop height (m).
+    """
+    t0 = np.sqrt(2.0 * h_m / (g * (1.0 - mu)))
+    v_in = g * (1.0 - mu) * t0
+    r = e * np.sqrt((1.0 - mu) / (1.0 + mu))
+    k = 1.0 / (g * (1.0 + mu)) + 1.0 / (g * np.sqrt(1.0 - mu * mu))
+    v = e * v_in * r ** np.arange(n_flights)
+    return np.concatenate([[t0], k * v])
+
+
+def fit_drop(t_fall_s: float, flights_s: np.ndarray, h_m: float, g: float = G_STANDARD):
+    """Least-squares ``(mu, e)`` and residuals (s) from a fall time and bounce flights.
+
+    Parameters
+    ----------
+    t_fall_s : release to first contact, s.
+    flights_s : (n,) successive bounce flight durations, s, first bounce first.
+    h_m : drop height, m.  g : m/s^2.
+    """
+    data = np.concatenate([[t_fall_s], np.asarray(flights_s, dtype=np.float64)])
+    n = data.size - 1
+    # start: mu from the fall time alone, e from the ratio of the first two flights
+    mu0 = float(np.clip(1.0 - 2.0 * h_m / (g * t_fall_s**2), 0.0, 0.9))
+    r0 = float(np.clip(np.median(data[2:] / data[1:-1]), 0.05, 0.95)) if n >= 2 else 0.5
+    e0 = float(np.clip(r0 / np.sqrt((1 - mu0) / (1 + mu0)), 0.05, 0.99))
+    return _fit(data, h_m, g, (mu0, e0))
+
+
+def _fit(data, h_m, g, x0):
+    n = data.size - 1
+
+    def resid(p):
+        return model_times(p[0], p[1], h_m, n, g) - data
+
+    sol = least_squares(
+        resid, x0, bounds=([-0.2, 0.0], [0.95, 1.0]), x_scale=[0.1, 0.1], xtol=1e-12, ftol=1e-12
+    )
+    return float(sol.x[0]), float(sol.x[1]), resid(sol.x)
+
+
+def bounce_sequence(t_fall_s, takeoff_s, landing_s, min_flight_s: float = MIN_FLIGHT_S):
+    """The usable bounce flights after the first contact, s: shape (n,).
+
+    Takes the flights in order from the first one, and stops at the first flight
+    shorter than ``min_flight_s`` or not shorter than its predecessor (the sequence
+    of a free drop only shrinks; anything else is chatter, rest or a new disturbance).
+    """
+    f = np.asarray(landing_s, dtype=np.float64) - np.asarray(takeoff_s, dtype=np.float64)
+    out = []
+    for i, d in enumerate(f):
+        if d < min_flight_s or (i > 0 and d >= f[i - 1]):
+            break
+        out.append(d)
+    return np.asarray(out)
+
+
+def bootstrap_ci(data, h_m, g, mu, e, resid, n_boot: int, seed: int):
+    """95 % percentile intervals of (mu, e) from a residual bootstrap; shapes (2,), (2,)."""
+    rng = np.random.default_rng(seed)
+    n = data.size
+    fitted = data + resid
+    # inflate residuals for the two fitted parameters (unbiased spread)
+    r = (resid - resid.mean()) * np.sqrt(n / max(n - 2, 1))
+    mus = np.empty(n_boot)
+    es = np.empty(n_boot)
+    for b in range(n_boot):
+        star = fitted + rng.choice(r, size=n, replace=True)
+        mus[b], es[b], _ = _fit(star, h_m, g, (mu, e))
+    return np.percentile(mus, [2.5, 97.5]), np.percentile(es, [2.5, 97.5])
+
+
+def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dict:
+    """Friction ``mu`` and restitution ``e`` of a drop run, with 95 % bootstrap intervals.
+
+    Returns the CONTRACTS.md section 4 dict plus ``t_fall_s``, ``flights_s`` (the fitted
+    bounce flights), ``residuals_s``, ``ratio`` (r), ``g_m_s2``, ``drop_height_m``,
+    ``n_boot``, ``seed``.
+
+    Raises
+    ------
+    BouncelabError
+        Not a drop run; no contact after the release; fewer than three bounces.
+    """
+    from bouncelab.flights.detect import detect_contacts
+    from bouncelab.flights.extract import _step_slice, sample_times
+    from bouncelab.runs import load_run, read_recording
+
+    run = load_run(run_dir)
+    if run.kind != "drop":
+        raise BouncelabError(
+            run.yaml_path, f"calibrate needs a drop run (kind: drop); this run is a {run.kind}"
+        )
+    rec = read_recording(run, roles=("continuity",))
+    fs = float(rec.fs)
+    g = float(run.extra.get("g_m_s2", G_STANDARD) or G_STANDARD)
+    h = float(run.drop_height_m)
+    opened = [_step_slice(rec.t_start_s, run.release_t_s, fs, rec.time_s, rec.n_samples)]
+    det = detect_contacts(rec.channels["continuity"], run.contact_level, (), opened, path=rec.path)
+    edges_s = sample_times(det.t_edge, fs, rec.time_s)
+    landing = edges_s[det.kind == 1]
+    after = landing[landing > run.release_t_s]
+    if after.size == 0:
+        raise BouncelabError(rec.path, "no contact after release_t_s: the mass never lands")
+    t_fall = float(after[0] - run.release_t_s)
+    ta, tl = det.flights()
+    ta_s, tl_s = sample_times(ta, fs, rec.time_s), sample_times(tl, fs, rec.time_s)
+    keep = ta_s >= after[0]
+    flights = bounce_sequence(t_fall, ta_s[keep], tl_s[keep])
+    if flights.size < MIN_BOUNCES:
+        raise BouncelabError(
+            rec.path,
+            f"only {flights.size} bounce(s) of at least {MIN_FLIGHT_S * 1e3:g} ms after the "
+            f"first contact; friction and restitution need at least {MIN_BOUNCES} (the fall "
+            "and two successive flights to separate mu from e, one more to check them)",
+        )
+    mu, e, resid = fit_drop(t_fall, flights, h, g)
+    data = np.concatenate([[t_fall], flights])
+    mu_ci, e_ci = bootstrap_ci(data, h, g, mu, e, resid, n_boot, seed)
+    return {
+        "mu": mu,
+        "mu_ci": [float(mu_ci[0]), float(mu_ci[1])],
+        "restitution": e,
+        "restitution_ci": [float(e_ci[0]), float(e_ci[1])],
+        "n_bounces": int(flights.size),
+        "ratio": float(e * np.sqrt((1 - mu) / (1 + mu))),
+        "t_fall_s": t_fall,
+        "flights_s": [float(v) for v in flights],
+        "residuals_s": [float(v) for v in resid],
+        "g_m_s2": g,
+        "drop_height_m": h,
+        "n_boot": int(n_boot),
+        "seed": int(seed),
+    }

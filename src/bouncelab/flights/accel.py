@@ -1,0 +1,239 @@
+"""The seed's discarded accelerometer method (seed section II and fig. 4), rebuilt.
+
+Per Gamma step: fit the drive sine and its harmonics (plus mains hum) to the ``accel``
+channel by least squares and subtract it; impacts are what remains.  A landing is the
+first sample of a burst whose absolute residual exceeds ``k`` robust noise sigmas
+(median absolute deviation), bursts closer than ``dead_s`` (the ringing) being one.
+As the seed did, the takeoff is not measured: it comes from the takeoff line
+``Gamma sin(phi) = 1`` of the ideal inelastic ball: a landing in the bouncing region
+(``Gamma sin(phi) > 1``) takes off at once, one in the sticking region waits for the
+next crossing of the line.  The plate phase comes from the accelerometer fit itself
+(plate acceleration ``-A w^2 sin(phi)``), so no drive channel is needed.
+
+:func:`compare_methods` matches these flights with the continuity method's by landing
+time and returns the figure-ready table and summary numbers (docs/flights.md).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bouncelab.flights.phase import TWO_PI
+
+ACCEL_COLUMNS = [
+    "step",
+    "gamma",
+    "t_takeoff_s",
+    "t_landing_s",
+    "flight_s",
+    "phi_landing",
+    "peak_sigma",
+]
+
+
+def subtract_drive(t_s, a, freq_hz, n_harmonics=5, hum_hz=(50.0,)):
+    """Residual of ``a`` after a least-squares fit of the drive, its harmonics and hum.
+
+    Parameters
+    ----------
+    t_s : (n,) s.  a : (n,) accelerometer samples (any unit).  freq_hz : drive, Hz.
+    n_harmonics : drive harmonics fitted (1 = fundamental only).
+    hum_hz : other known frequencies fitted and removed (mains hum), Hz.
+
+    Returns
+    -------
+    resid : (n,) residual.  amp : fundamental amplitude.  phase0 : plate phase (rad) at
+    ``t_s[0]``, from ``a = -amp sin(phi)`` (acceleration opposes position).
+    """
+    t = np.asarray(t_s, dtype=np.float64) - float(t_s[0])
+    a = np.asarray(a, dtype=np.float64)
+    cols = [np.ones_like(t)]
+    for h in range(1, n_harmonics + 1):
+        w = TWO_PI * freq_hz * h * t
+        cols += [np.sin(w), np.cos(w)]
+    for f in hum_hz:
+        if f > 0 and abs(f / freq_hz - round(f / freq_hz)) > 1e-6:
+            cols += [np.sin(TWO_PI * f * t), np.cos(TWO_PI * f * t)]
+    m = np.stack(cols, axis=1)
+    keep = np.ones(t.shape, dtype=bool)
+    for _ in range(2):  # refit without the impact bursts
+        coef, *_ = np.linalg.lstsq(m[keep], a[keep], rcond=None)
+        resid = a - m @ coef
+        sig = 1.4826 * np.median(np.abs(resid - np.median(resid)))
+        keep = np.abs(resid) < 4.0 * max(sig, 1e-300)
+    s, c = coef[1], coef[2]  # a ~ s sin(w t) + c cos(w t) = amp sin(w t + th)
+    amp = float(np.hypot(s, c))
+    th = float(np.arctan2(c, s))
+    return resid, amp, float(np.mod(th + np.pi, TWO_PI))  # -sin(phi) = sin(phi + pi)
+
+
+def find_impacts(resid, fs, k_sigma=6.0, dead_s=2e-3):
+    """Sample indices (m,) of impact onsets in a residual, and their peak in sigmas (m,).
+
+    An onset is the first sample with ``|resid| > k_sigma * sigma`` (sigma from the
+    median absolute deviation) after at least ``dead_s`` below the threshold.
+    """
+    sig = 1.4826 * np.median(np.abs(resid - np.median(resid)))
+    over = np.abs(resid) > k_sigma * max(sig, 1e-300)
+    idx = np.flatnonzero(over)
+    if idx.size == 0:
+        return idx, np.empty(0)
+    dead = max(1, int(round(dead_s * fs)))
+    start = np.concatenate([[True], np.diff(idx) > dead])
+    on = idx[start]
+    ends = np.concatenate([idx[np.flatnonzero(start)[1:] - 1], [idx[-1]]])
+    peaks = np.array([np.abs(resid[a : b + 1]).max() for a, b in zip(on, ends, strict=True)])
+    return on, peaks / max(sig, 1e-300)
+
+
+def takeoff_phase(phi_land, gamma):
+    """Takeoff phase (rad, unwrapped: >= phi_land) after a landing at ``phi_land``.
+
+    The ideal inelastic ball leaves at once in the bouncing region ``Gamma sin(phi) > 1``
+    and otherwise rides the plate to the next crossing of the takeoff line at
+    ``arcsin(1/Gamma)`` (mod 2 pi).  NaN for ``Gamma <= 1`` (it never leaves).
+    """
+    phi_land = np.asarray(phi_land, dtype=np.float64)
+    if gamma <= 1.0:
+        return np.full(phi_land.shape, np.nan)
+    p0 = np.arcsin(1.0 / gamma)
+    p = np.mod(phi_land, TWO_PI)
+    bouncing = (p > p0) & (p < np.pi - p0)
+    wait = np.mod(p0 - p, TWO_PI)
+    return np.where(bouncing, phi_land, phi_land + wait)
+
+
+def accel_flights(
+    accel, fs, steps, freq_hz, time_s=None, k_sigma=6.0, dead_s=2e-3, n_harmonics=5, hum_hz=(50.0,)
+) -> pd.DataFrame:
+    """Flights from an accelerometer channel, one row per detected landing.
+
+    Parameters
+    ----------
+    accel : (n,) accelerometer samples (volts or g; only ratios matter).
+    fs : Hz.  steps : DataFrame ``step, gamma, t_start_s, t_end_s``.  freq_hz : Hz.
+    time_s : (n,) or None.
+
+    Returns a DataFrame with :data:`ACCEL_COLUMNS`: the flight ends at an impact onset
+    and starts at the takeoff that the takeoff line gives after the previous impact.
+    """
+    rows = []
+    n = accel.shape[0]
+    w = TWO_PI * freq_hz
+    for st in steps.itertuples(index=False):
+        if time_s is None:
+            a, b = max(0, int(np.ceil(st.t_start_s * fs))), min(n, int(np.ceil(st.t_end_s * fs)))
+            t = np.arange(a, b) / fs
+        else:
+            a, b = np.searchsorted(time_s, st.t_start_s), np.searchsorted(time_s, st.t_end_s)
+            t = time_s[a:b]
+        if b - a < 64 or st.gamma <= 1.0:
+            continue
+        resid, _, phase0 = subtract_drive(t, accel[a:b], freq_hz, n_harmonics, hum_hz)
+        on, peak = find_impacts(resid, fs, k_sigma, dead_s)
+        if on.size < 2:
+            continue
+        t_land = t[on]
+        phi_land = phase0 + w * (t_land - t[0])
+        phi_take = takeoff_phase(phi_land, st.gamma)
+        t_take = t[0] + (phi_take - phase0) / w
+        # flight i: takeoff after impact i, landing at impact i+1
+        ok = t_take[:-1] < t_land[1:]
+        rows.append(
+            pd.DataFrame(
+                {
+                    "step": int(st.step),
+                    "gamma": float(st.gamma),
+                    "t_takeoff_s": t_take[:-1][ok],
+                    "t_landing_s": t_land[1:][ok],
+                    "flight_s": (t_land[1:] - t_take[:-1])[ok],
+                    "phi_landing": np.mod(phi_land[1:][ok], TWO_PI),
+                    "peak_sigma": peak[1:][ok],
+                }
+            )
+        )
+    if not rows:
+        return pd.DataFrame({c: [] for c in ACCEL_COLUMNS})
+    return pd.concat(rows, ignore_index=True)[ACCEL_COLUMNS]
+
+
+def compare_methods(cont: pd.DataFrame, acc: pd.DataFrame, tol_s: float = 1e-3):
+    """Match accelerometer flights to continuity flights by landing time.
+
+    Parameters
+    ----------
+    cont : continuity flight table (``t_takeoff_s``, ``t_landing_s``, ``flight_s``, ``step``,
+        ``gamma``).  acc : :func:`accel_flights` table.  tol_s : largest landing mismatch, s.
+
+    Returns
+    -------
+    table : DataFrame, one row per continuity flight: ``step, gamma, t_landing_s,
+        flight_s_continuity, flight_s_accel`` (NaN when not found), ``diff_s``
+        (accel - continuity), ``found``.
+    summary : dict: ``n_continuity``, ``n_accel``, ``share_found``, ``share_false``
+        (accel flights matching none), ``median_abs_error_s``, ``p90_abs_error_s``,
+        ``p99_abs_error_s``.
+    """
+    tl = cont["t_landing_s"].to_numpy(dtype=np.float64)
+    al = acc["t_landing_s"].to_numpy(dtype=np.float64)
+    fa = np.full(tl.shape, np.nan)
+    used = np.zeros(al.shape, dtype=bool)
+    if al.size and tl.size:
+        j = np.clip(np.searchsorted(al, tl), 1, max(al.size - 1, 1))
+        cand = np.stack([j - 1, np.minimum(j, al.size - 1)])
+        d = np.abs(al[cand] - tl)
+        best = cand[np.argmin(d, axis=0), np.arange(tl.size)]
+        hit = np.abs(al[best] - tl) <= tol_s
+        fa[hit] = acc["flight_s"].to_numpy()[best[hit]]
+        used[best[hit]] = True
+    fc = cont["flight_s"].to_numpy(dtype=np.float64)
+    table = pd.DataFrame(
+        {
+            "step": cont["step"].to_numpy(),
+            "gamma": cont["gamma"].to_numpy(),
+            "t_landing_s": tl,
+            "flight_s_continuity": fc,
+            "flight_s_accel": fa,
+            "diff_s": fa - fc,
+            "found": np.isfinite(fa),
+        }
+    )
+    err = np.abs(table["diff_s"].to_numpy())
+    err = err[np.isfinite(err)]
+
+    def q(p):
+        return float(np.percentile(err, p)) if err.size else float("nan")
+
+    summary = {
+        "n_continuity": int(tl.size),
+        "n_accel": int(al.size),
+        "share_found": float(np.mean(np.isfinite(fa))) if tl.size else float("nan"),
+        "share_false": float(1.0 - used.mean()) if al.size else float("nan"),
+        "median_abs_error_s": q(50),
+        "p90_abs_error_s": q(90),
+        "p99_abs_error_s": q(99),
+    }
+    return table, summary
+
+
+def compare_run(run_dir: str | Path, **kwargs):
+    """Both methods on one run with an ``accel`` channel: ``(table, summary)``."""
+    from bouncelab.errors import BouncelabError
+    from bouncelab.flights.extract import extract_run
+    from bouncelab.runs import load_run, read_recording, step_table
+
+    run = load_run(run_dir)
+    if "accel" not in run.channels:
+        raise BouncelabError(run.yaml_path, "the run has no accel channel")
+    if run.kind != "sweep":
+        raise BouncelabError(run.yaml_path, "the accelerometer method needs a sweep run")
+    rec = read_recording(run, roles=("accel",))
+    steps = step_table(run, rec.duration_s)
+    acc = accel_flights(
+        rec.channels["accel"], rec.fs, steps, run.drive_frequency_hz, rec.time_s, **kwargs
+    )
+    cont, _ = extract_run(run_dir)
+    return compare_methods(cont, acc)

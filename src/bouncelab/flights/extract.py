@@ -1,0 +1,296 @@
+"""The flight table of a run (CONTRACTS.md section 3) and its QC table per step.
+
+:func:`extract_run` reads a run folder with :mod:`bouncelab.runs` (so every check of
+the run format applies), detects the contacts (:func:`detect_contacts`), turns edges
+into flights, assigns each to its Gamma step by takeoff time and adds the drive phase.
+:func:`flights_from_detection` does the same on arrays, for tests and other callers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bouncelab.flights.detect import Detection, NoContactsError, detect_contacts
+from bouncelab.flights.phase import TWO_PI, fit_sine, phase_at
+
+FLIGHT_COLUMNS = [
+    "run",
+    "step",
+    "gamma",
+    "t_takeoff_s",
+    "t_landing_s",
+    "flight_s",
+    "T",
+    "phi_takeoff",
+    "phi_landing",
+    "settled",
+    "contact_before_s",
+]
+QC_COLUMNS = [
+    "run",
+    "step",
+    "gamma",
+    "t_start_s",
+    "t_end_s",
+    "flights",
+    "flights_settled",
+    "glitches",
+    "noise_v",
+    "level_gap_v",
+    "contact_fraction",
+    "tau_rc_s",
+    "drive_amplitude_v",
+    "drive_noise_v",
+]
+
+
+def sample_times(idx: np.ndarray, fs: float, time_s: np.ndarray | None) -> np.ndarray:
+    """Times (s) of fractional sample indices: ``idx / fs``, or interpolated in ``time_s``."""
+    idx = np.asarray(idx, dtype=np.float64)
+    if time_s is None:
+        return idx / fs
+    k = np.arange(time_s.shape[0], dtype=np.float64)
+    # beyond the ends (sub-sample edges before sample 0) extrapolate at the nominal rate
+    t = np.interp(idx, k, time_s)
+    t = np.where(idx < 0, time_s[0] + idx / fs, t)
+    last = time_s.shape[0] - 1
+    return np.where(idx > last, time_s[-1] + (idx - last) / fs, t)
+
+
+def gap_mask(idx_a: np.ndarray, idx_b: np.ndarray, fs: float, time_s) -> np.ndarray:
+    """True where the sample range ``[floor(a), ceil(b)]`` contains a data gap (a jump
+    of the ``time_s`` axis longer than 1.5 sample periods)."""
+    if time_s is None or time_s.shape[0] < 2:
+        return np.zeros(np.shape(idx_a), dtype=bool)
+    jumps = np.flatnonzero(np.diff(time_s) > 1.5 / fs)  # gap between sample j and j+1
+    if jumps.size == 0:
+        return np.zeros(np.shape(idx_a), dtype=bool)
+    lo = np.floor(idx_a).astype(np.int64) - 1
+    hi = np.ceil(idx_b).astype(np.int64)
+    # any jump j with lo <= j < hi
+    first = np.searchsorted(jumps, lo, side="left")
+    return (first < jumps.size) & (jumps[np.minimum(first, jumps.size - 1)] < hi)
+
+
+def flights_from_detection(
+    det: Detection,
+    fs: float,
+    steps: pd.DataFrame,
+    drive_freq_hz: float | None = None,
+    settle_cycles: int = 10,
+    time_s: np.ndarray | None = None,
+    phase_fits: dict | None = None,
+    phase_offset_rad: float = 0.0,
+    run_id: str = "",
+) -> pd.DataFrame:
+    """Flight table (CONTRACTS.md section 3 columns plus ``contact_before_s``).
+
+    Parameters
+    ----------
+    det : Detection of the continuity channel.
+    fs : sampling rate, Hz.
+    steps : DataFrame with ``step``, ``gamma``, ``t_start_s``, ``t_end_s`` (s); a flight
+        belongs to the step its takeoff falls in; flights outside every step are dropped.
+    drive_freq_hz : drive frequency (Hz) for ``T`` and ``settled``; None gives NaN ``T``
+        and every flight settled.
+    settle_cycles : drive cycles after each step start whose flights are not settled.
+    time_s : (n,) sample times or None (``index / fs``).
+    phase_fits : step -> SineFit of the drive channel (None or missing: NaN phases).
+    phase_offset_rad : how far the drive reference leads the plate, rad.
+    """
+    ta_i, tl_i = det.flights()
+    ok = ~gap_mask(ta_i, tl_i, fs, time_s)
+    ta_i, tl_i = ta_i[ok], tl_i[ok]
+    t_take = sample_times(ta_i, fs, time_s)
+    t_land = sample_times(tl_i, fs, time_s)
+    # contact that precedes each flight (NaN when cut by the recording's start)
+    c_start, c_end = det.contacts()
+    j = np.searchsorted(c_end, ta_i) if c_end.size else np.zeros(ta_i.shape, dtype=int)
+    has = (j < c_end.size) & (c_end[np.minimum(j, max(c_end.size - 1, 0))] == ta_i)
+    cb = np.full(ta_i.shape, np.nan)
+    if c_end.size:
+        jj = np.minimum(j, c_end.size - 1)
+        cb = np.where(has, (c_end[jj] - c_start[jj]) / fs, np.nan)
+    st = steps.sort_values("t_start_s")
+    k = np.searchsorted(st["t_start_s"].to_numpy(), t_take, side="right") - 1
+    inside = k >= 0
+    if len(st):
+        kk = np.maximum(k, 0)
+        inside &= t_take < st["t_end_s"].to_numpy()[kk]
+    else:
+        inside &= False
+    t_take, t_land, k, cb = t_take[inside], t_land[inside], k[inside], cb[inside]
+    step_ids = st["step"].to_numpy()[k]
+    gammas = st["gamma"].to_numpy(dtype=np.float64)[k]
+    t0 = st["t_start_s"].to_numpy(dtype=np.float64)[k]
+    flight = t_land - t_take
+    if drive_freq_hz:
+        big_t = TWO_PI * drive_freq_hz * flight
+        settled = (t_take - t0) >= settle_cycles / drive_freq_hz
+    else:
+        big_t = np.full(flight.shape, np.nan)
+        settled = np.ones(flight.shape, dtype=bool)
+    phi_t = np.full(flight.shape, np.nan)
+    phi_l = np.full(flight.shape, np.nan)
+    if phase_fits and drive_freq_hz:
+        for s, fit in phase_fits.items():
+            m = step_ids == s
+            if m.any():
+                phi_t[m] = phase_at(t_take[m], fit, drive_freq_hz, phase_offset_rad)
+                phi_l[m] = phase_at(t_land[m], fit, drive_freq_hz, phase_offset_rad)
+    nan_g = gammas <= 0  # the plate is at rest: no phase
+    phi_t[nan_g] = np.nan
+    phi_l[nan_g] = np.nan
+    return pd.DataFrame(
+        {
+            "run": pd.Series([run_id] * flight.size, dtype=object),
+            "step": step_ids.astype(np.int64),
+            "gamma": gammas,
+            "t_takeoff_s": t_take,
+            "t_landing_s": t_land,
+            "flight_s": flight,
+            "T": big_t,
+            "phi_takeoff": phi_t,
+            "phi_landing": phi_l,
+            "settled": settled.astype(bool),
+            "contact_before_s": cb,
+        },
+        columns=FLIGHT_COLUMNS,
+    )
+
+
+def _drop_steps(duration_s: float, t_first: float) -> pd.DataFrame:
+    """A drop run has one pseudo-step: Gamma 0 (plate at rest) over the whole recording."""
+    return pd.DataFrame(
+        {"step": [0], "gamma": [0.0], "t_start_s": [t_first], "t_end_s": [duration_s]}
+    )
+
+
+def _qc_table(run_id, steps, det, fs, time_s, flights, fits, drive_present) -> pd.DataFrame:
+    """QC per step: flights, glitches, noise, level gap, contact fraction, RC, drive fit."""
+    rows = []
+    tau_s = det.tau_samples / fs if det is not None else np.nan
+    if det is not None:
+        nb = det.n_glitch.shape[0]
+        centres = sample_times((np.arange(nb) + 0.5) * det.block, fs, time_s)
+        sizes = np.minimum(det.block, det.n_samples - np.arange(nb) * det.block)
+    for row in steps.itertuples(index=False):
+        f = flights[flights["step"] == row.step]
+        rec = {
+            "run": run_id,
+            "step": int(row.step),
+            "gamma": float(row.gamma),
+            "t_start_s": float(row.t_start_s),
+            "t_end_s": float(row.t_end_s),
+            "flights": int(len(f)),
+            "flights_settled": int(f["settled"].sum()),
+            "glitches": 0,
+            "noise_v": np.nan,
+            "level_gap_v": np.nan,
+            "contact_fraction": np.nan,
+            "tau_rc_s": tau_s,
+            "drive_amplitude_v": np.nan,
+            "drive_noise_v": np.nan,
+        }
+        if det is not None:
+            m = (centres >= row.t_start_s) & (centres < row.t_end_s)
+            if m.any():
+                rec["glitches"] = int(det.n_glitch[m].sum())
+                rec["noise_v"] = float(np.median(det.noise_v[m]))
+                rec["level_gap_v"] = float(np.median(np.abs(det.contact_v - det.open_v)[m]))
+                rec["contact_fraction"] = float(det.n_contact[m].sum() / sizes[m].sum())
+        fit = fits.get(int(row.step)) if drive_present else None
+        if fit is not None:
+            rec["drive_amplitude_v"] = fit.amplitude
+            rec["drive_noise_v"] = fit.noise
+        rows.append(rec)
+    return pd.DataFrame(rows, columns=QC_COLUMNS)
+
+
+def _step_slice(t0, t1, fs, time_s, n):
+    """Sample index range [a, b) of the time window [t0, t1), s."""
+    if time_s is None:
+        return max(0, int(np.ceil(t0 * fs))), min(n, int(np.ceil(t1 * fs)))
+    return int(np.searchsorted(time_s, t0)), int(np.searchsorted(time_s, t1))
+
+
+def drive_fits(drive, steps, fs, freq_hz, time_s) -> dict:
+    """SineFit of the drive channel per step (step -> SineFit); the first settle
+    cycles are kept: the phase of the reference does not jump at a step change."""
+    fits = {}
+    n = drive.shape[0]
+    for row in steps.itertuples(index=False):
+        a, b = _step_slice(row.t_start_s, row.t_end_s, fs, time_s, n)
+        if b - a < 8:
+            continue
+        t = np.arange(a, b) / fs if time_s is None else time_s[a:b]
+        fits[int(row.step)], _ = fit_sine(t, drive[a:b], freq_hz)
+    return fits
+
+
+def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Flight table and QC table of one run folder.
+
+    Returns
+    -------
+    flights : DataFrame, one row per flight, columns :data:`FLIGHT_COLUMNS`.
+    qc : DataFrame, one row per Gamma step (one for a drop run), :data:`QC_COLUMNS`.
+
+    Raises
+    ------
+    BouncelabError
+        Anything :func:`bouncelab.runs.read_recording` rejects; a continuity channel stuck
+        at one rail; "no contacts found" (except for a sweep whose steps all have
+        Gamma < 1, where the body never leaves the plate: no flights, no error).
+    """
+    from bouncelab.runs import load_run, read_recording, step_table
+
+    run = load_run(run_dir)
+    rec = read_recording(run, roles=("continuity", "drive"))
+    fs = float(rec.fs)
+    x = rec.channels["continuity"]
+    time_s = rec.time_s
+    n = rec.n_samples
+    if run.kind == "drop":
+        steps = _drop_steps(rec.duration_s, rec.t_start_s)
+        freq = None
+    else:
+        steps = step_table(run, rec.duration_s)[["step", "gamma", "t_start_s", "t_end_s"]]
+        freq = run.drive_frequency_hz
+    rest, opened = [], []
+    for row in steps.itertuples(index=False):
+        if run.kind == "sweep" and row.gamma < 1.0:
+            rest.append(_step_slice(row.t_start_s, row.t_end_s, fs, time_s, n))
+    if run.kind == "drop" and run.release_t_s is not None:
+        opened.append(_step_slice(rec.t_start_s, run.release_t_s, fs, time_s, n))
+    try:
+        det = detect_contacts(x, run.contact_level, rest, opened, path=rec.path)
+    except NoContactsError:
+        if run.kind == "sweep" and len(steps) and bool((steps["gamma"] < 1.0).all()):
+            det = None  # the body rests all along: no flights, and that is right
+        else:
+            raise
+    drive = rec.channels.get("drive")
+    fits = drive_fits(drive, steps, fs, freq, time_s) if (drive is not None and freq) else {}
+    offset = float(run.extra.get("drive_phase_offset_rad", 0.0) or 0.0)
+    if det is None:
+        flights = pd.DataFrame({c: [] for c in FLIGHT_COLUMNS})
+        flights = flights.astype(
+            {"step": np.int64, "settled": bool, "run": object}
+            | {c: np.float64 for c in FLIGHT_COLUMNS if c not in ("run", "step", "settled")}
+        )
+    else:
+        flights = flights_from_detection(
+            det, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id
+        )
+    qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None)
+    return flights, qc
+
+
+def qc_path_for(out: str | Path) -> Path:
+    """Where the QC table goes beside a flight table: ``<stem>.qc<suffix>``."""
+    out = Path(out)
+    return out.with_name(f"{out.stem}.qc{out.suffix}")

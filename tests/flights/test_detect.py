@@ -1,0 +1,93 @@
+"""Detection on synthetic continuity signals with a known truth (tests/flights/flights_synth.py).
+
+Truth: the contact intervals fed to an exact RC filter on a 0.4-1 us grid, so the
+reference edge times are exact to that grid.  Tolerances are the issue's targets
+(median flight-duration error < 10 us, 99th percentile < 50 us) unless stated.
+"""
+
+import numpy as np
+import pytest
+from flights_synth import bouncing_contacts, continuity, true_flights
+
+from bouncelab.errors import BouncelabError
+from bouncelab.flights import NoContactsError, detect_contacts
+
+FS = 20_000.0
+
+
+def match(det, contacts, tol_s=0.3e-3):
+    """Flight-duration errors (s) of matched true flights and the share found."""
+    ta, tl = (v / FS for v in det.flights())
+    tt, tlt = true_flights(contacts)
+    j = np.clip(np.searchsorted(tl, tlt), 1, len(tl) - 1)
+    jj = np.where(np.abs(tl[j - 1] - tlt) < np.abs(tl[j] - tlt), j - 1, j)
+    ok = (np.abs(tl[jj] - tlt) < tol_s) & (np.abs(ta[jj] - tt) < tol_s)
+    err = np.abs((tl[jj] - ta[jj]) - (tlt - tt))[ok]
+    return err, ok.mean(), len(ta), len(tt)
+
+
+@pytest.mark.parametrize("contact_high", [False, True])
+@pytest.mark.parametrize("tau_s,noise_v", [(25e-6, 0.01), (25e-6, 0.05), (60e-6, 0.02)])
+def test_accuracy_on_synthetic_bouncing(tau_s, noise_v, contact_high):
+    """Short (15-45 us) contacts, chatter with sub-ms flights, drift of 0.3 V, either
+    polarity: issue targets on the duration error; >= 99 % found (the truth here has
+    flights down to 0.15 ms, harder than the rig's > 1 ms criterion)."""
+    c = bouncing_contacts(10.0, seed=2)
+    lv = (0.0, 5.0) if contact_high else (5.0, 0.0)
+    x, _ = continuity(
+        c, 10.0, tau_s=tau_s, open_v=lv[0], contact_v=lv[1], noise_v=noise_v, drift_v=0.3, seed=3
+    )
+    det = detect_contacts(x)
+    assert det.contact_high == contact_high
+    # RC constant recovered from the data (reference: the synthetic tau; 10 %)
+    assert det.tau_samples / FS == pytest.approx(tau_s, rel=0.1)
+    err, found, n_det, n_true = match(det, c)
+    print(
+        f"tau {tau_s} noise {noise_v}: found {found:.4f} median {np.median(err) * 1e6:.2f} us "
+        f"p99 {np.percentile(err, 99) * 1e6:.1f} us ({n_det} detected / {n_true} true)"
+    )
+    assert found >= 0.99
+    assert np.median(err) < 10e-6
+    assert np.percentile(err, 99) < 50e-6
+
+
+def test_glitches_removed_and_one_sample_contacts_kept():
+    """20 single-sample spikes of +-0.6 of the gap: at least 19 removed at their exact
+    index and nothing else removed (a spike on the sample beside a real edge can hide in
+    it: the documented limit); >= 99 % of flights found, at most 2 more or fewer, although most
+    contacts last less than one sample."""
+    c = bouncing_contacts(10.0, seed=4)
+    x, gidx = continuity(c, 10.0, tau_s=25e-6, noise_v=0.01, glitches=20, glitch_v=3.0, seed=5)
+    det = detect_contacts(x)
+    hit = set(det.glitch_at.tolist())
+    assert hit <= set(gidx.tolist())
+    assert len(hit) >= 19
+    err, found, n_det, n_true = match(det, c)
+    print(f"glitches removed {len(hit)}/20, found {found:.4f}, {n_det} / {n_true} flights")
+    assert found >= 0.99 and abs(n_det - n_true) <= 2
+    short = np.diff(np.asarray(c), axis=1).ravel() < 1 / FS
+    assert short.mean() > 0.5  # most contacts are shorter than one sample
+
+
+def test_polarity_from_rest_interval_and_forced():
+    """A recording that rests in contact most of the time: the 'shorter total time' rule
+    alone would call the wrong level; the rest hint (Gamma < 1) and contact_level fix it."""
+    c = [(0.0, 6.0)] + [(6.0 + 0.05 * i, 6.0 + 0.05 * i + 2e-3) for i in range(1, 30)]
+    x, _ = continuity(c, 8.0, tau_s=25e-6, noise_v=0.01, seed=6)
+    n_rest = int(5.0 * FS)
+    assert detect_contacts(x, rest_intervals=[(0, n_rest)]).contact_high is False
+    assert detect_contacts(x, contact_level="low").contact_high is False
+    assert detect_contacts(x, contact_level="high").contact_high is True
+
+
+def test_no_transitions_and_stuck_rail():
+    rng = np.random.default_rng(0)
+    noisy = 5.0 + 0.01 * rng.standard_normal(20_000)
+    with pytest.raises(NoContactsError, match="no contacts found"):
+        detect_contacts(noisy, path="rec.npz")
+    with pytest.raises(BouncelabError, match="stuck at one rail"):
+        detect_contacts(np.full(20_000, 9.99969), path="rec.npz")
+    clipped = noisy.copy()
+    clipped[:19_900] = 10.0
+    with pytest.raises(BouncelabError, match="stuck at one rail"):
+        detect_contacts(clipped, path="rec.npz")

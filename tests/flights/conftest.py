@@ -1,6 +1,5 @@
 """Fixtures: short virtual-rig recordings written into tmp folders (bouncelab.rig)."""
 
-import numpy as np
 import pytest
 import yaml
 
@@ -23,17 +22,3 @@ def make_rig(tmp_path_factory):
         return cache[name]
 
     return make
-
-
-def write_npz_run(folder, channels, fs=20_000.0, **yaml_keys):
-    """A hand-made run folder with an NPZ recording (for bad-input tests)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    np.savez(folder / "rec.npz", **channels)
-    spec = {
-        "format_version": 1,
-        "recording": "rec.npz",
-        "sample_rate_hz": fs,
-        "channels": {role: role for role in channels},
-    } | yaml_keys
-    (folder / "run.yaml").write_text(yaml.safe_dump(spec))
-    return folder

@@ -8,6 +8,7 @@ white noise, slow drift and optional single-sample glitches.  All randomness is 
 from __future__ import annotations
 
 import numpy as np
+import yaml
 from scipy.signal import lfilter
 
 
@@ -98,3 +99,17 @@ def true_flights(contacts):
     """(takeoff, landing) arrays, s, of the flights between consecutive contacts."""
     c = np.asarray(contacts)
     return c[:-1, 1], c[1:, 0]
+
+
+def write_npz_run(folder, channels, fs=20_000.0, **yaml_keys):
+    """A hand-made run folder with an NPZ recording (for bad-input tests)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    np.savez(folder / "rec.npz", **channels)
+    spec = {
+        "format_version": 1,
+        "recording": "rec.npz",
+        "sample_rate_hz": fs,
+        "channels": {role: role for role in channels},
+    } | yaml_keys
+    (folder / "run.yaml").write_text(yaml.safe_dump(spec))
+    return folder

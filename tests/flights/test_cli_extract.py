@@ -5,8 +5,7 @@ import hashlib
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import write_npz_run
-from flights_synth import bouncing_contacts, continuity
+from flights_synth import bouncing_contacts, continuity, write_npz_run
 
 from bouncelab.cli import main
 from bouncelab.flights import FLIGHT_COLUMNS

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ideal_flight_from_rest, quiet_config
+from rig_helpers import ideal_flight_from_rest, quiet_config
 
 G = 9.81
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import quiet_config
+from rig_helpers import quiet_config
 
 from bouncelab.rig.config import derive
 from bouncelab.rig.kernels import zeta_from_restitution

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import quiet_config
+from rig_helpers import quiet_config
 
 from bouncelab.rig import read_truth, run_rig, write_run, write_truth
 from bouncelab.rig.sensors import adc_codes, codes_to_volts

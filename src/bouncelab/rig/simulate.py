@@ -285,6 +285,8 @@ def run_meta(cfg: dict, d: dict) -> dict:
     else:
         meta["drop_height_m"] = cfg["protocol"]["drop_height_m"]
         meta["release_t_s"] = cfg["protocol"]["release_t_s"]
+        # an optional key (kept by readers): calibration then uses the rig's own g
+        meta["g_m_s2"] = cfg["body"]["g_m_s2"]
     if cfg["sensors"]["accel"]["enabled"]:
         meta["accel_v_per_g"] = cfg["sensors"]["accel"]["v_per_g"]
     meta["source"] = "synthetic"

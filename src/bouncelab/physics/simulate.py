@@ -1,0 +1,283 @@
+"""Protocols: arrange kernel runs and build flight DataFrames (units in docs/architecture.md).
+
+- :func:`simulate_grid`: each Gamma from rest (or given start phases), transients skipped;
+- :func:`simulate_protocol`: the lab protocol, Gamma steps with the state carried over;
+- :func:`simulate_drop`: a body released above a still plate (drop test).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from bouncelab.errors import BouncelabError
+from bouncelab.physics import kernels as K
+from bouncelab.physics.model import Model
+
+#: a predicted chatter flight shorter than this (rad) ends the chatter: the rest of the
+#: geometric series is summed analytically and the body sticks
+CHATTER_EPS = 1e-5
+#: relative height counted as contact (nondimensional; 1e-13 g/omega^2 is ~1e-16 m at 30 Hz)
+CONTACT_TOL = 1e-13
+#: hard cap on impacts in one chatter sequence
+CHATTER_CAP = 10_000
+#: a ride longer than this many drive cycles without takeoff counts as stuck
+RIDE_CYCLES = 64
+
+_NO_END = np.int64(2**50)  # "no step boundary" for a single-Gamma run
+
+FLIGHT_COLUMNS = (
+    "gamma",
+    "T",
+    "phi_takeoff",
+    "phi_landing",
+    "v_impact",
+    "e_friction",
+    "e_impact",
+    "e_plate",
+    "chatter",
+    "start",
+    "flight",
+    "x_takeoff",
+    "v_takeoff",
+    "tail",
+)
+_COLS = {
+    "gamma": K.C_GAMMA,
+    "T": K.C_T,
+    "phi_takeoff": K.C_PHI0,
+    "phi_landing": K.C_PHIL,
+    "v_impact": K.C_VIMP,
+    "e_friction": K.C_EFRIC,
+    "e_impact": K.C_EIMP,
+    "e_plate": K.C_EPLATE,
+    "chatter": K.C_CHAT,
+    "start": K.C_START,
+    "flight": K.C_FLIGHT,
+    "x_takeoff": K.C_X0,
+    "v_takeoff": K.C_V0,
+    "tail": K.C_TAIL,
+    "step": K.C_STEP,
+    "t_takeoff": K.C_TTO,
+    "settled": K.C_SETTLED,
+}
+_BOOL = {"chatter", "settled"}
+_INT = {"start", "flight", "step"}
+
+
+def kernel_params(model: Model) -> np.ndarray:
+    """The ``par`` vector of :mod:`bouncelab.physics.kernels` for ``model``, shape ``(NPAR,)``."""
+    p = model.params
+    par = np.zeros(K.NPAR)
+    par[K.P_S] = p.get("s", 1.0)
+    par[K.P_MU] = p.get("mu", 0.0)
+    par[K.P_E] = p.get("e", 0.0)
+    par[K.P_R] = p.get("mass_ratio", 0.0)
+    par[K.P_F] = p.get("f_ratio", 1.0)
+    par[K.P_Z] = p.get("zeta", 0.0)
+    par[K.P_EPS] = CHATTER_EPS
+    par[K.P_HTOL] = CONTACT_TOL
+    par[K.P_CAP] = CHATTER_CAP
+    par[K.P_RIDE] = RIDE_CYCLES * 2.0 * math.pi
+    return par
+
+
+def _check_model(model) -> Model:
+    if not isinstance(model, Model):
+        raise BouncelabError(None, f"expected a physics.Model, got {type(model).__name__}")
+    return model
+
+
+def _gamma_array(gammas, what="gamma") -> np.ndarray:
+    g = np.atleast_1d(np.asarray(gammas, dtype=float))
+    if g.ndim != 1 or g.size == 0:
+        raise BouncelabError(None, f"{what} must be a non-empty 1-D list of numbers")
+    if not np.all(np.isfinite(g)) or np.any(g < 0):
+        raise BouncelabError(None, f"{what} values must be finite and >= 0")
+    return g
+
+
+def _start_phases(phi_start, n_starts: int, seed: int) -> np.ndarray:
+    """Start phases, shape ``(n_starts,)``: given, phase 0 for one start, or seeded uniform."""
+    if phi_start is not None:
+        ph = np.atleast_1d(np.asarray(phi_start, dtype=float))
+        if ph.ndim != 1 or ph.size == 0 or not np.all(np.isfinite(ph)):
+            raise BouncelabError(None, "phi_start must be finite numbers")
+        return np.mod(ph, 2.0 * np.pi)
+    if int(n_starts) < 1:
+        raise BouncelabError(None, f"n_starts must be >= 1, not {n_starts}")
+    if n_starts == 1:
+        return np.zeros(1)
+    return np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, int(n_starts))
+
+
+def _frame(out: np.ndarray, columns, keep=None) -> pd.DataFrame:
+    """DataFrame from ``out[column, row]``, keeping the rows where ``keep`` (default all).
+
+    Float columns are views into ``out`` when nothing is dropped (``copy=False``: no
+    block consolidation, which costs seconds for millions of rows).
+    """
+    data = {}
+    for name in columns:
+        col = out[_COLS[name]]
+        if keep is not None:
+            col = col[keep]
+        if name in _BOOL:
+            data[name] = col > 0.5
+        elif name in _INT:
+            data[name] = col.astype(np.int64)
+        else:
+            data[name] = col
+    return pd.DataFrame(data, copy=False)
+
+
+def _written(rows, max_rec):
+    """Mask of the written rows of each trajectory block (None when every block is full)."""
+    if np.all(rows == max_rec):
+        return None
+    idx = np.arange(max_rec)
+    return (idx[None, :] < rows[:, None]).ravel()
+
+
+def simulate_grid(
+    model: Model,
+    gammas,
+    n_flights: int,
+    n_skip: int = 0,
+    phi_start=None,
+    n_starts: int = 1,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """Each Gamma on its own: the body starts at rest on the plate, flights are recorded.
+
+    Parameters
+    ----------
+    model : Model
+    gammas : array_like, shape (n_gamma,)
+        Stated Gamma values (``gamma_scale`` multiplies them for the plate).
+    n_flights : int
+        Flights recorded per Gamma and start (fewer if the body sticks for good,
+        e.g. none below Gamma = 1 for ``ideal``).
+    n_skip : int
+        Transient flights dropped before recording.
+    phi_start : float or array_like, optional
+        Start phases (rad) of the body resting on the plate; default phase 0 for one
+        start, seeded uniform phases for ``n_starts > 1``.
+    n_starts, seed : int
+        Ensemble size and the seed of its start phases.
+
+    Returns
+    -------
+    DataFrame, one row per flight, ordered by Gamma, start, flight: ``FLIGHT_COLUMNS``
+    (``T``, phases in rad, velocities in g/omega, energies per mass in (g/omega)^2).
+    """
+    model = _check_model(model)
+    g = _gamma_array(gammas)
+    n_flights, n_skip = int(n_flights), int(n_skip)
+    if n_flights < 1 or n_skip < 0:
+        raise BouncelabError(None, "n_flights must be >= 1 and n_skip >= 0")
+    starts = _start_phases(phi_start, n_starts, seed)
+    ns = starts.size
+    g_st = np.repeat(g, ns)
+    g_tr = model.gamma_true(g_st)
+    n = g_st.size
+    hk, ha, hp = model.harmonic_arrays()
+    out = np.empty((K.NCOL, n * n_flights))
+    rows, _status = K.run_many(
+        kernel_params(model), hk, ha, hp, g_tr[:, None], g_st[:, None],
+        np.array([_NO_END]), True, np.tile(starts, g.size), np.zeros(n), np.zeros(n),
+        n_skip, n_flights, 0, np.tile(np.arange(ns, dtype=float), g.size), out,
+    )  # fmt: skip
+    return _frame(out, FLIGHT_COLUMNS, _written(rows, n_flights))
+
+
+def simulate_protocol(
+    model: Model,
+    gammas,
+    cycles,
+    settle_cycles: int = 10,
+    seed: int = 0,
+    n_starts: int = 1,
+    phi_start=None,
+) -> pd.DataFrame:
+    """The lab protocol: Gamma steps with the state carried from one step to the next.
+
+    Step ``i`` lasts ``cycles[i]`` drive cycles at stated ``gammas[i]``.  The new
+    amplitude takes effect at the step's first phase (a whole number of cycles since
+    the start, where ``sin`` is 0, so the fundamental's position is continuous) whatever
+    the body is doing: a body in flight flies on, a riding body rides on.  Flights
+    still in the air when the last step ends are dropped.
+
+    Returns the columns of :func:`simulate_grid` plus ``step`` (index of the takeoff's
+    step), ``t_takeoff`` (phase since the protocol start, rad) and ``settled`` (False
+    for takeoffs within the first ``settle_cycles`` cycles of their step).
+    """
+    model = _check_model(model)
+    g = _gamma_array(gammas)
+    cyc = np.atleast_1d(np.asarray(cycles))
+    if cyc.shape != g.shape or not np.all(np.isfinite(cyc.astype(float))):
+        raise BouncelabError(None, "cycles must give one whole number per Gamma step")
+    if np.any(cyc < 1) or np.any(np.asarray(cyc, dtype=float) % 1 != 0):
+        raise BouncelabError(None, "cycles must be whole numbers >= 1")
+    if settle_cycles < 0:
+        raise BouncelabError(None, "settle_cycles must be >= 0")
+    step_end = np.cumsum(cyc.astype(np.int64))
+    starts = _start_phases(phi_start, n_starts, seed)
+    ns = starts.size
+    g_st = np.tile(g, (ns, 1))
+    g_tr = model.gamma_true(g_st)
+    hk, ha, hp = model.harmonic_arrays()
+    max_rec = int(4 * step_end[-1] + 64)
+    while True:
+        out = np.empty((K.NCOL, ns * max_rec))
+        rows, status = K.run_many(
+            kernel_params(model), hk, ha, hp, g_tr, g_st, step_end, True, starts,
+            np.zeros(ns), np.zeros(ns), 0, max_rec, int(settle_cycles),
+            np.arange(ns, dtype=float), out,
+        )  # fmt: skip
+        if not np.any(status == K.ST_FULL):
+            break
+        max_rec *= 4  # chatter made more flights than guessed: rerun with room
+    columns = (*FLIGHT_COLUMNS, "step", "t_takeoff", "settled")
+    return _frame(out, columns, _written(rows, max_rec))
+
+
+def simulate_from(
+    model: Model, gamma: float, phi0: float, x0: float, v0: float, n_flights: int, n_skip: int = 0
+) -> pd.DataFrame:
+    """Flights of a body released in flight: height ``x0``, velocity ``v0`` at phase ``phi0``.
+
+    For starting on a known orbit (e.g. the restitution period-1 orbit) or above the
+    plate.  ``x0`` must not be below the plate.  Columns as :func:`simulate_grid`.
+    """
+    model = _check_model(model)
+    g = _gamma_array([gamma])
+    vals = np.array([phi0, x0, v0], dtype=float)
+    if not np.all(np.isfinite(vals)):
+        raise BouncelabError(None, "phi0, x0 and v0 must be finite")
+    if int(n_flights) < 1 or int(n_skip) < 0:
+        raise BouncelabError(None, "n_flights must be >= 1 and n_skip >= 0")
+    hk, ha, hp = model.harmonic_arrays()
+    out = np.empty((K.NCOL, int(n_flights)))
+    rows, _ = K.run_many(
+        kernel_params(model), hk, ha, hp, model.gamma_true(g)[:, None], g[:, None],
+        np.array([_NO_END]), False, np.array([math.fmod(vals[0], 2.0 * math.pi) % (2.0 * math.pi)]),
+        vals[1:2], vals[2:3], int(n_skip), int(n_flights), 0, np.zeros(1), out,
+    )  # fmt: skip
+    return _frame(out[:, : rows[0]], FLIGHT_COLUMNS)
+
+
+def simulate_drop(model: Model, height: float, n_flights: int = 200) -> pd.DataFrame:
+    """A body released at rest from ``height`` above a still plate (Gamma = 0).
+
+    The first row is the fall, then the rebounds until the chatter ends in sticking
+    (or ``n_flights`` rows).  ``height`` is nondimensional (``x omega^2 / g``; any
+    ``omega`` works on a still plate).  The last row's ``e_*`` terms include the
+    summed chatter tail.  Feedback, if in the model, still makes the plate recoil.
+    """
+    h = float(height)
+    if not math.isfinite(h) or h <= 0:
+        raise BouncelabError(None, f"drop height must be > 0, not {height!r}")
+    return simulate_from(model, 0.0, 0.0, h, 0.0, n_flights)

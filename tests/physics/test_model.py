@@ -1,0 +1,74 @@
+"""Model names, parameters and the EFFECTS table (CONTRACTS.md section 5)."""
+
+import math
+
+import pytest
+
+from bouncelab.errors import BouncelabError
+from bouncelab.physics import EFFECTS, Model, parse_assignments
+
+
+def test_effects_table_has_every_contract_parameter_with_sane_bounds():
+    want = {
+        "friction": {"mu"},
+        "restitution": {"e"},
+        "harmonic": {"k", "a", "psi"},
+        "feedback": {"mass_ratio", "f_ratio", "zeta"},
+        "gamma_scale": {"s"},
+    }
+    assert {k: set(v) for k, v in EFFECTS.items()} == want
+    for params in EFFECTS.values():
+        for default, lo, hi in params.values():
+            assert lo <= default <= hi and lo < hi
+    assert EFFECTS["restitution"]["e"][2] < 1 and EFFECTS["friction"]["mu"][2] < 1
+
+
+def test_parse_canonical_name_defaults_and_copy():
+    m = Model.parse("restitution+friction", {"mu": 0.3})
+    assert m.name == "friction+restitution"
+    assert m.effects == ("friction", "restitution")
+    assert m.params == {"mu": 0.3, "e": EFFECTS["restitution"]["e"][0]}
+    m2 = m.with_params(e=0.2)
+    assert m2.params["e"] == 0.2 and m.params["e"] != 0.2
+    assert Model.parse("ideal").name == "ideal" and Model.parse("ideal").params == {}
+    full = Model.parse("friction+restitution+harmonic+feedback+gamma_scale")
+    assert full.name == "friction+restitution+harmonic+feedback+gamma_scale"
+
+
+def test_harmonic_list_and_single():
+    m = Model.parse("harmonic", {"harmonics": [(3, 0.1, 0.0), (0.37, 0.2, 1.0)]})
+    assert m.harmonics == ((3.0, 0.1, 0.0), (0.37, 0.2, 1.0))
+    assert (m.params["k"], m.params["a"]) == (3.0, 0.1)
+    m2 = m.with_params(a=0.3)
+    assert m2.harmonics[0] == (3.0, 0.3, 0.0) and m2.harmonics[1] == (0.37, 0.2, 1.0)
+    m3 = Model.parse("harmonic", {"k": 2.5, "a": 0.2, "psi": math.pi})
+    assert m3.harmonics == ((2.5, 0.2, math.pi),)
+
+
+@pytest.mark.parametrize(
+    ("name", "params"),
+    [
+        ("frictio", {}),
+        ("friction+friction", {}),
+        ("friction+", {}),
+        ("friction", {"e": 0.5}),
+        ("friction", {"nope": 1}),
+        ("friction", {"mu": 1.2}),
+        ("restitution", {"e": "x"}),
+        ("restitution", {"e": float("nan")}),
+        ("feedback", {"f_ratio": 0}),
+        ("gamma_scale", {"s": -1}),
+        ("harmonic", {"harmonics": [(1, 2)]}),
+    ],
+)
+def test_bad_models_raise_one_line_errors(name, params):
+    with pytest.raises(BouncelabError) as err:
+        Model.parse(name, params)
+    assert "\n" not in str(err.value)
+
+
+def test_parse_assignments():
+    assert parse_assignments(["mu=0.29", "e = 0.5"]) == {"mu": 0.29, "e": 0.5}
+    for bad in (["mu"], ["=1"], ["zz=1"], ["mu=abc"]):
+        with pytest.raises(BouncelabError):
+            parse_assignments(bad)

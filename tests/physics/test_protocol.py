@@ -1,0 +1,94 @@
+"""The lab protocol and ensembles."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bouncelab.errors import BouncelabError
+from bouncelab.physics import Model, simulate_grid, simulate_protocol
+
+TWO_PI = 2 * math.pi
+
+
+def test_single_step_protocol_equals_grid():
+    # one step from rest at phase 0 is the grid run cut at the step's end: identical flights
+    m = Model.parse("friction+restitution", {"mu": 0.2, "e": 0.4})
+    prot = simulate_protocol(m, [2.7], [80], settle_cycles=0)
+    grid = simulate_grid(m, [2.7], len(prot))
+    assert np.array_equal(prot["T"].to_numpy(), grid["T"].to_numpy())
+    # every flight of the protocol lands before the last step ends
+    assert (prot["t_takeoff"] + prot["T"]).max() <= 80 * TWO_PI
+
+
+def test_steps_settle_and_carry_state():
+    gammas, cycles, settle = [1.5, 3.5, 3.6, 2.0], [40, 60, 50, 30], 10
+    df = simulate_protocol(Model.parse("ideal"), gammas, cycles, settle_cycles=settle)
+    ends = np.cumsum(cycles) * TWO_PI
+    starts = np.concatenate([[0.0], ends[:-1]])
+    step = df["step"].to_numpy()
+    # the step of a row is where its takeoff lies; gamma is that step's stated Gamma
+    assert np.all(df["t_takeoff"] >= starts[step]) and np.all(df["t_takeoff"] < ends[step])
+    assert np.allclose(df["gamma"], np.array(gammas)[step])
+    # settled is False exactly for takeoffs within the first `settle` cycles of a step
+    expect = df["t_takeoff"].to_numpy() >= starts[step] + settle * TWO_PI
+    assert np.array_equal(df["settled"].to_numpy(), expect)
+    assert np.all(np.diff(df["t_takeoff"]) > 0)
+    assert set(step) == {0, 1, 2, 3}
+    # the state carries over: at Gamma 3.5 the body is locked in the bouncing region and
+    # never rides, so step 2 (3.6) starts from that orbit, not from rest (compare with
+    # step 2 run alone from rest, whose first flight leaves the line arcsin(1/3.6))
+    alone = simulate_protocol(Model.parse("ideal"), [3.6], [50])
+    assert alone["phi_takeoff"].iloc[0] == pytest.approx(math.asin(1 / 3.6), abs=1e-12)
+    carried = df[df["step"] == 2]
+    assert not np.isclose(carried["T"].iloc[0], alone["T"].iloc[0])
+    assert carried["t_takeoff"].iloc[0] - starts[2] < TWO_PI  # no wait for a fresh start
+    # settled flights of the locked step (Gamma 3.6) have T = 2 pi after the transient
+    inside = df["t_takeoff"] + df["T"] < ends[2]  # landed before Gamma changed again
+    locked = df[(df["step"] == 2) & df["settled"] & inside]["T"].to_numpy()[-5:]
+    assert np.allclose(locked, TWO_PI, atol=1e-6)
+
+
+def test_history_matters_under_the_protocol():
+    # sweeping up into the period-doubled range vs jumping there: both valid flights,
+    # and the table records which step each flight belongs to
+    m = Model.parse("ideal")
+    up = simulate_protocol(m, [3.0, 3.5, 3.9], [50, 50, 50])
+    jump = simulate_protocol(m, [3.9], [150])
+    assert len(up) > 0 and len(jump) > 0
+    assert up["flight"].is_monotonic_increasing
+
+
+def test_ensemble_of_starts_is_seeded():
+    m = Model.parse("restitution", {"e": 0.3})
+    a = simulate_grid(m, [2.2, 4.1], 20, n_starts=4, seed=7)
+    b = simulate_grid(m, [2.2, 4.1], 20, n_starts=4, seed=7)
+    c = simulate_grid(m, [2.2, 4.1], 20, n_starts=4, seed=8)
+    assert a.equals(b)
+    assert not a.equals(c)
+    assert sorted(a["start"].unique()) == [0, 1, 2, 3]
+    p = simulate_protocol(m, [2.2, 4.1], [30, 30], n_starts=3, seed=1)
+    assert sorted(p["start"].unique()) == [0, 1, 2]
+
+
+def test_given_start_phases():
+    # a start phase inside the bouncing region takes off at once from there
+    df = simulate_grid(Model.parse("ideal"), [3.0], 1, phi_start=[1.0, 2.0])
+    assert np.allclose(df["phi_takeoff"], [1.0, 2.0])
+
+
+@pytest.mark.parametrize(
+    ("gammas", "cycles"), [([1.0, 2.0], [10]), ([1.0], [0]), ([1.0], [2.5]), ([-1.0], [3])]
+)
+def test_bad_protocol_is_refused(gammas, cycles):
+    with pytest.raises(BouncelabError):
+        simulate_protocol(Model.parse("ideal"), gammas, cycles)
+
+
+def test_chatter_heavy_protocol_grows_its_buffer():
+    # e = 0.8 at Gamma 1.1 chatters to sticking every cycle, ~7 flights per cycle:
+    # more rows than the first guess of 4 per cycle + 64
+    m = Model.parse("restitution", {"e": 0.8})
+    df = simulate_protocol(m, [1.1], [20])
+    assert len(df) > 4 * 20 + 64
+    assert df["chatter"].any()

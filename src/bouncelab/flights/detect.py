@@ -25,12 +25,22 @@ Rules (docs/flights.md has the full story):
   0.12, 0.45)``; a contact that fills less than that share of one sample interval is
   not seen (about 6 us at 20 kHz with the usual RC front end), and the two flights
   around it merge into one.
+
+Speed (docs/flights.md, "Speed"): every pass over the samples is cut into pieces that
+run on ``numba.get_num_threads()`` threads (the kernels release the GIL), and the
+pieces are stitched so that the result is bit for bit that of the serial kernels
+(``kernels.*_serial``, the definition): the levels pass replays each block's record
+with the truly carried levels, the edge pass compares the state each piece started
+from (after a warm-up) with the state the previous piece ended in, and reruns a piece
+in the rare case they differ.
 """
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from bouncelab.errors import BouncelabError
@@ -42,6 +52,9 @@ THR_MIN, THR_MAX = 0.12, 0.45  # bounds of the threshold on z, fraction of the g
 GLITCH_K = 6.0  # noise multiples of the glitch rules
 MIN_SEPARATION = 10.0  # level gap / noise below which there are no two levels
 PRIOR_SAMPLES = 2_000_000  # samples used to learn the typical short-contact duration
+PIECE = 1 << 20  # samples per piece of a parallel pass (pieces are claimed dynamically)
+MAX_PIECES_PER_THREAD = 4  # more pieces balance the load, each costs a warm-up
+EDGE_WARMUP = 256  # samples the edge pass runs before a piece to settle its state
 
 
 class NoContactsError(BouncelabError):
@@ -135,17 +148,33 @@ def _robust_noise(x: np.ndarray, max_points: int = 500_000) -> float:
     return float(np.median(np.abs(d - np.median(d))) * 1.4826 / np.sqrt(2.0))
 
 
-def check_transitions(x: np.ndarray, path=None) -> None:
-    """Raise :class:`BouncelabError` when ``x`` is stuck at one value or has no two levels."""
-    xmin, xmax = float(np.min(x)), float(np.max(x))
+def check_transitions(x: np.ndarray, path=None, extremes=None) -> None:
+    """Raise :class:`BouncelabError` when ``x`` is stuck at one value (in every sample, or
+    in >= 99 % of them).
+
+    ``extremes``: optional ``(block_min, block_max, block)`` per-block extremes (from the
+    levels pass) that spare the full passes: a value can occur only in the blocks whose
+    extreme it is, so it is counted only when those blocks hold >= 99 % of the samples.
+    """
     n = x.shape[0]
+    if extremes is None:
+        xmin, xmax = float(np.min(x)), float(np.max(x))
+        size_min = size_max = n
+    else:
+        bmin, bmax, block = extremes
+        xmin, xmax = float(np.min(bmin)), float(np.max(bmax))
+        sizes = np.minimum(block, n - np.arange(bmin.shape[0]) * block)
+        size_min, size_max = int(sizes[bmin == xmin].sum()), int(sizes[bmax == xmax].sum())
     if xmax == xmin:
         raise BouncelabError(
             path, f"continuity channel is stuck at one rail ({xmin:.6g} V in every sample)"
         )
-    n_at = max(np.count_nonzero(x == xmin), np.count_nonzero(x == xmax))
+    # counts that cannot reach 99 % stay 0: they change neither the test nor the message
+    n_min = np.count_nonzero(x == xmin) if size_min >= 0.99 * n else 0
+    n_max = np.count_nonzero(x == xmax) if size_max >= 0.99 * n else 0
+    n_at = max(n_min, n_max)
     if n_at >= 0.99 * n:
-        rail = xmin if np.count_nonzero(x == xmin) >= np.count_nonzero(x == xmax) else xmax
+        rail = xmin if n_min >= n_max else xmax
         raise BouncelabError(
             path,
             f"continuity channel is stuck at one rail ({rail:.6g} V in "
@@ -214,13 +243,20 @@ def decide_polarity(
     return float(np.mean(frac_hi)) < 0.5
 
 
-def estimate_q(x, block, open_b, gap_b, max_ratios: int = 200_000) -> float:
-    """RC decay per sample from clean edges (median ratio), 0 when not measurable."""
+def estimate_q(x, block, open_b, gap_b, max_ratios: int = 200_000, par=None) -> float:
+    """RC decay per sample from clean edges (median ratio), 0 when not measurable.
+
+    ``par``: a :class:`Parallel` to scan pieces at once (the ratios, concatenated in
+    order, are the serial kernel's)."""
+    par = par or Parallel(1)
     # a prefix usually holds enough clean edges; the whole recording only if it does not
     inv = 1.0 / gap_b
-    r = kernels.rc_ratios(x[:PRIOR_SAMPLES], block, open_b, inv, max_ratios)
-    if r.size < 200 and x.shape[0] > PRIOR_SAMPLES:
-        r = kernels.rc_ratios(x, block, open_b, inv, max_ratios)
+    n = x.shape[0]
+    head = min(n, PRIOR_SAMPLES)
+    r = par.rc_ratios(x, 0, head, block, open_b, inv, max_ratios)
+    if r.size < 200 and n > PRIOR_SAMPLES:
+        rest = par.rc_ratios(x, PRIOR_SAMPLES, n, block, open_b, inv, max_ratios)
+        r = np.concatenate([r, rest])[:max_ratios]
     r = r[np.isfinite(r)]
     if r.size < 8:
         return 0.0
@@ -248,6 +284,134 @@ def _short_contact_prior(t_edge, kind, max_len=1.0) -> float:
     return float(d[np.searchsorted(w, 0.5 * w[-1])])
 
 
+class Parallel:
+    """Runs the kernels' pieces on ``n_threads`` threads and stitches them.
+
+    ``piece`` is the length of a piece in samples (None: about :data:`PIECE`, at least
+    two per thread and at most :data:`MAX_PIECES_PER_THREAD`); tests set it small so that
+    cuts fall everywhere.  Used as a context manager (the thread pool lives inside).
+    """
+
+    def __init__(self, n_threads: int | None = None, piece: int | None = None):
+        self.n_threads = max(1, int(n_threads or numba.get_num_threads()))
+        self.piece = piece
+        self.reruns = 0  # edge pieces rerun because their warm-up did not settle
+        self._pool = None
+
+    def __enter__(self):
+        if self.n_threads > 1:
+            self._pool = ThreadPoolExecutor(self.n_threads)
+        return self
+
+    def __exit__(self, *exc):
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def map(self, fn, arg_tuples):
+        """``[fn(*a) for a in arg_tuples]``, on the pool when there is one."""
+        if self._pool is None or len(arg_tuples) < 2:
+            return [fn(*a) for a in arg_tuples]
+        return list(self._pool.map(lambda a: fn(*a), arg_tuples))
+
+    def submit(self, fn, *args):
+        """A future of ``fn(*args)`` (run at once without a pool)."""
+        if self._pool is None:
+            return _Done(fn(*args))
+        return self._pool.submit(fn, *args)
+
+    def bounds(self, lo: int, hi: int, unit: int = 1, cuts=()) -> np.ndarray:
+        """Increasing bounds of pieces covering ``[lo, hi)``, in steps of ``unit``
+        samples (a block), with the extra cut points ``cuts`` inside."""
+        span = max(hi - lo, 0)
+        if self.piece:
+            count = -(-span * unit // max(self.piece, 1))
+        else:
+            count = min(-(-span * unit // PIECE), MAX_PIECES_PER_THREAD * self.n_threads)
+            count = max(count, 2 * self.n_threads) if self.n_threads > 1 else 1
+        count = int(max(1, min(count, span)))
+        b = lo + (np.arange(count + 1) * span) // count
+        extra = [c for c in cuts if lo < c < hi]
+        return np.unique(np.concatenate([b, np.asarray(extra, dtype=b.dtype)]))
+
+    def rc_ratios(self, x, k_lo, k_hi, block, open_b, inv_b, max_out) -> np.ndarray:
+        """:func:`kernels.rc_range` over ``[k_lo, k_hi)`` in pieces: the serial ratios."""
+        pieces = _pairs(self.bounds(k_lo, k_hi))
+        args = [(x, a, e, block, open_b, inv_b, max_out) for a, e in pieces]
+        parts = self.map(kernels.rc_range, args)
+        return np.concatenate(parts)[:max_out] if parts else np.empty(0)
+
+    def block_levels(self, x, block, lo0, hi0, min_count):
+        """:func:`kernels.block_levels_serial` in runs of blocks (bit for bit), and the
+        records (with the per-block extremes)."""
+        rec = kernels.new_level_records(x.shape[0], block)
+        runs = _pairs(self.bounds(0, rec.shape[0], unit=block))
+        args = [(x, block, lo0, hi0, min_count, a, e, rec) for a, e in runs]
+        self.map(kernels.levels_run, args)
+        return kernels.levels_walk(x, block, lo0, hi0, min_count, rec), rec
+
+    def edges(self, x, params, cuts=()):
+        """The edge pass :func:`kernels.detect_edges_serial` with ``d_prior = 0`` over the
+        whole recording, in pieces, stitched: returns the list of pieces' results
+        (:func:`kernels.edge_range` tuples), their bounds and the true state each
+        started from.
+
+        A piece after the first runs :data:`EDGE_WARMUP` samples before its own from a
+        guessed state; when the state it reaches differs from the one the previous piece
+        really ended in, it is rerun from the true state.
+        """
+        n = x.shape[0]
+        pieces = _pairs(self.bounds(1, n, cuts=cuts))
+        runs = self.map(_edge_piece, [(x, a, e, params) for a, e in pieces])
+        results, starts = [], []
+        state, u = runs[0][0], runs[0][1]  # the first piece starts as the serial pass
+        for (a, e), (s0, u0, res) in zip(pieces, runs, strict=True):
+            if s0 != state or u0 != u:
+                res = kernels.edge_range(x, a, e, state, u, *params)
+                self.reruns += 1
+            starts.append((state, u))
+            results.append(res)
+            state, u = int(res[5]), float(res[6])
+        return results, pieces, starts
+
+
+def _pairs(bounds) -> list[tuple[int, int]]:
+    """Consecutive ``(start, end)`` pairs of increasing bounds."""
+    b = [int(v) for v in bounds]
+    return list(zip(b[:-1], b[1:], strict=True))
+
+
+class _Done:
+    """A finished "future" (no pool)."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def result(self):
+        return self.value
+
+
+def _edge_piece(x, a, e, params):
+    """Edges of the iterations ``[a, e)``, started from the serial state when ``a == 1``
+    else from the state reached after a warm-up from a guess; returns
+    ``(start_state, start_u_prev, result)``."""
+    block, open_b, inv_b = params[0], params[1], params[2]
+    w0 = max(1, a - EDGE_WARMUP)
+    u_g = float(kernels.u_at(x, w0 - 1, block, open_b, inv_b))
+    state = 1 if u_g > 0.5 else 0  # the serial pass's own start when w0 == 1
+    if w0 < a:
+        warm = kernels.edge_range(x, w0, a, state, u_g, *params)
+        state, u_g = int(warm[5]), float(warm[6])
+    return state, u_g, kernels.edge_range(x, a, e, state, u_g, *params)
+
+
+def _subsample(x: np.ndarray, max_points: int = 500_000) -> np.ndarray:
+    """``x[::step]`` in float64 with ``step = max(1, n // max_points)``: the points that
+    :func:`two_means` and :func:`_robust_noise` use (they pick the same ones from it)."""
+    step = max(1, x.shape[0] // max_points)
+    return np.asarray(x[::step], dtype=np.float64)
+
+
 def detect_contacts(
     x: np.ndarray,
     contact_level: str = "auto",
@@ -255,6 +419,8 @@ def detect_contacts(
     open_intervals=(),
     block: int = BLOCK,
     path=None,
+    n_threads: int | None = None,
+    piece: int | None = None,
 ) -> Detection:
     """Find every contact and flight edge in a continuity channel.
 
@@ -266,6 +432,9 @@ def detect_contacts(
         body is known to rest on the plate / to be off it (polarity hints for ``auto``).
     block : samples per level block.
     path : file named in errors.
+    n_threads : threads for the passes over the samples (None: numba's thread count).
+    piece : samples per piece of a parallel pass (None: automatic).  Neither changes
+        the result, which is bit for bit that of the serial kernels.
 
     Raises
     ------
@@ -275,33 +444,56 @@ def detect_contacts(
     x = np.ascontiguousarray(x)
     if x.shape[0] < 3:
         raise BouncelabError(path, "continuity channel has fewer than 3 samples")
-    check_transitions(x, path)
-    lo0, hi0, _ = two_means(x)
-    noise = _robust_noise(x)
+    with Parallel(n_threads, piece) as par:
+        return _detect(x, contact_level, rest_intervals, open_intervals, block, path, par)
+
+
+def _detect(x, contact_level, rest_intervals, open_intervals, block, path, par) -> Detection:
+    """:func:`detect_contacts` with its pieces run by ``par`` (a :class:`Parallel`)."""
+    n = x.shape[0]
+    s = _subsample(x)
+    noise_f = par.submit(_robust_noise, s)
+    lo0, hi0, _ = two_means(s)
+    (lo_b, hi_b, frac_hi, sd_b), rec = par.block_levels(x, block, lo0, hi0, MIN_COUNT)
+    check_transitions(x, path, (*kernels.block_extremes(rec), block))
+    noise = noise_f.result()
     if not hi0 - lo0 > MIN_SEPARATION * max(noise, 1e-12):
         raise NoContactsError(
             path,
             "no contacts found: the continuity channel shows no transitions between two "
             f"levels (level gap {hi0 - lo0:.3g} V, noise {noise:.3g} V)",
         )
-    lo_b, hi_b, frac_hi, sd_b = kernels.block_levels(x, block, lo0, hi0, MIN_COUNT)
     lo, hi = _fill_levels(lo_b, hi_b, lo0, hi0)
     high = decide_polarity(frac_hi, block, contact_level, rest_intervals, open_intervals)
     open_v, contact_v = (lo, hi) if high else (hi, lo)
     gap = contact_v - open_v
     sd = np.where(np.isfinite(sd_b), sd_b, np.nanmedian(sd_b) if np.isfinite(sd_b).any() else 0)
-    q = estimate_q(x, block, open_v, gap)
+    q = estimate_q(x, block, open_v, gap, par=par)
     sdz = sd / np.abs(gap) * np.sqrt(1.0 + q * q) / (1.0 - q)
-    # first pass on a prefix learns the duration of short contacts (the prior that
-    # places a contact lying wholly inside one sample interval)
-    head = x[:PRIOR_SAMPLES]
-    t0, k0, *_ = kernels.detect_edges(
-        head, block, open_v, 1.0 / gap, sdz, q, THR_MIN, THR_MAX, 0.0, GLITCH_K
-    )
-    d_prior = _short_contact_prior(t0, k0) if q > 0 else 0.0
-    t, kind, n_glitch, n_contact, first, glitch_at = kernels.detect_edges(
-        x, block, open_v, 1.0 / gap, sdz, q, THR_MIN, THR_MAX, d_prior, GLITCH_K
-    )
+    params = (block, open_v, 1.0 / gap, sdz, q, THR_MIN, THR_MAX, 0.0, GLITCH_K)
+    # one edge pass with no prior; the prior (the typical duration of short contacts,
+    # learnt on the first PRIOR_SAMPLES as the serial code's first pass does) only
+    # places the contacts that lie wholly inside one interval, so those are placed
+    # again afterwards: the same numbers as a second serial pass with the prior
+    results, pieces, starts = par.edges(x, params, cuts=(PRIOR_SAMPLES - 1,))
+    t = np.concatenate([r[0] for r in results])
+    kind = np.concatenate([r[1] for r in results])
+    t_head, k_head = _head_edges(x, results, pieces, starts, params)
+    d_prior = _short_contact_prior(t_head, k_head) if q > 0 else 0.0
+    if d_prior != 0.0:
+        offsets = np.cumsum([0] + [r[0].shape[0] for r in results[:-1]])
+        p_at = np.concatenate([r[7] + o for r, o in zip(results, offsets, strict=True)])
+        p_k = np.concatenate([r[8] for r in results])
+        p_z = np.concatenate([r[9] for r in results])
+        kernels.place_pulses(t, p_at, p_k, p_z, q, d_prior)
+    nb = open_v.shape[0]
+    n_glitch = np.zeros(nb, dtype=np.int64)
+    n_contact = np.zeros(nb, dtype=np.int64)
+    for (a, _), r in zip(pieces, results, strict=True):
+        b0 = a // block
+        n_glitch[b0 : b0 + r[3].shape[0]] += r[3]
+        n_contact[b0 : b0 + r[4].shape[0]] += r[4]
+    glitch_at = np.concatenate([r[2] for r in results])[:4096]
     if t.size == 0:
         raise NoContactsError(
             path, "no contacts found: no transitions between the two continuity levels"
@@ -309,7 +501,7 @@ def detect_contacts(
     return Detection(
         t_edge=t,
         kind=kind,
-        first_state=int(first),
+        first_state=int(starts[0][0]),
         contact_high=bool(high),
         open_v=open_v,
         contact_v=contact_v,
@@ -320,5 +512,27 @@ def detect_contacts(
         n_contact=n_contact,
         glitch_at=glitch_at,
         block=block,
-        n_samples=int(x.shape[0]),
+        n_samples=int(n),
+    )
+
+
+def _head_edges(x, results, pieces, starts, params):
+    """Edges that the serial first pass over ``x[:PRIOR_SAMPLES]`` finds (``d_prior`` 0).
+
+    That pass is the full pass up to iteration ``PRIOR_SAMPLES - 2``; its last iteration
+    has no look-ahead (the samples end there), so it is run apart from the state the
+    full pass had before it (a piece starts there)."""
+    n = x.shape[0]
+    if n <= PRIOR_SAMPLES:
+        return (
+            np.concatenate([r[0] for r in results]),
+            np.concatenate([r[1] for r in results]),
+        )
+    last = PRIOR_SAMPLES - 1
+    i = next(j for j, (a, _) in enumerate(pieces) if a == last)
+    state, u = starts[i]
+    tail = kernels.edge_range(x[:PRIOR_SAMPLES], last, PRIOR_SAMPLES, state, u, *params)
+    return (
+        np.concatenate([r[0] for r in results[:i]] + [tail[0]]),
+        np.concatenate([r[1] for r in results[:i]] + [tail[1]]),
     )

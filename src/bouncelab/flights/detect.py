@@ -48,7 +48,7 @@ from bouncelab.flights import kernels
 
 BLOCK = 4096  # samples per level block (0.2 s at 20 kHz): drift is much slower
 MIN_COUNT = 32  # samples a level needs in a block to be trusted there
-THR_MIN, THR_MAX = 0.12, 0.45  # bounds of the threshold on z, fraction of the gap
+THR_MIN, THR_MAX = 0.06, 0.45  # bounds of the threshold on z, fraction of the gap
 GLITCH_K = 6.0  # noise multiples of the glitch rules
 MIN_SEPARATION = 10.0  # level gap / noise below which there are no two levels
 PRIOR_SAMPLES = 2_000_000  # samples used to learn the typical short-contact duration

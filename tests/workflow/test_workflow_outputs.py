@@ -97,32 +97,29 @@ def test_fig02_locks_at_one_period(workflow_dir):
 def test_fig06_calibration_recovers_the_rig(workflow_dir):
     # reference: the rig's true mu and e of the shipped drop run, +-0.02 (issue 4)
     d = figure_data(workflow_dir, "fig06_drop_test", "drop_test")
-    _, params = truth("drop_test")
-    assert d["mu"] == pytest.approx(params["mu"], abs=0.02)
-    assert d["restitution"] == pytest.approx(params["restitution"], abs=0.02)
+    body = truth("drop_test")[1]["config"]["body"]
+    assert d["mu"] == pytest.approx(body["friction_mu"], abs=0.02)
+    assert d["restitution"] == pytest.approx(body["restitution"], abs=0.02)
 
 
 @pytest.mark.parametrize("run", SWEEPS)
 def test_fig07_measured_flights_match_the_rig_truth(workflow_dir, run):
-    # reference: the rig's true flights; per step, the median measured flight time must
-    # equal the true median within 0.005 periods (0.2 ms at 25 Hz, several times the
-    # extraction's stated accuracy) on steps with at least 20 settled flights
+    # reference: the rig's true flights. Fig. 7 plots the run's flight table; per step,
+    # its flights longer than 1 ms (shorter ones include openings of nanoseconds that no
+    # 20 kHz recording shows) must match the truth: the count within 1 % + 1 and the
+    # median within 0.002 periods (80 us at 25 Hz), on steps with at least 20 of them
     d = figure_data(workflow_dir, "fig07_bifurcation", run)
-    flights, _ = truth(run)
-    flights = flights[flights["settled"]]
-    true_med = flights.groupby("step")["T"].median() / (2 * math.pi)
-    counts = flights.groupby("step").size()
-    gam = flights.groupby("step")["gamma"].first()
-    measured = dict(zip(d["data_gamma"], d["data_median_T_periods"], strict=True))
+    assert d["n_data"] > 0
+    data = read_table(workflow_dir / "results" / "runs" / run / "flights.parquet")
+    true, _ = truth(run)
     checked = 0
-    for step, med in true_med.items():
-        if counts[step] < 20:
-            continue
-        g = float(gam[step])
-        got = [v for k, v in measured.items() if abs(k - g) < 1e-9]
-        assert got, f"step at Gamma {g} has true flights but none measured"
-        assert got[0] == pytest.approx(med, abs=0.005), f"Gamma {g}"
-        checked += 1
+    for step, tru in true[true["flight_s"] > 1e-3].groupby("step"):
+        got = data[(data["step"] == step) & (data["flight_s"] > 1e-3)]
+        assert abs(len(got) - len(tru)) <= 0.01 * len(tru) + 1, f"step {step}"
+        if len(tru) >= 20:
+            med_true = tru["T"].median() / (2 * math.pi)
+            assert got["T"].median() / (2 * math.pi) == pytest.approx(med_true, abs=0.002)
+            checked += 1
     assert checked >= 10
 
 

@@ -31,7 +31,8 @@ P_EPS = 6  # chatter threshold: a predicted flight shorter than this (rad) ends 
 P_HTOL = 7  # contact resolution: relative height <= HTOL counts as contact
 P_CAP = 8  # hard cap on flights in one chatter sequence
 P_RIDE = 9  # longest ride searched for a takeoff (rad) before declaring the body stuck
-NPAR = 10
+P_FAST = 10  # 1.0: pure sine plates use fly_sine; 0.0: the general solver fly everywhere
+NPAR = 11
 
 # --- output columns -----------------------------------------------------------------
 C_GAMMA = 0  # stated Gamma at takeoff
@@ -322,6 +323,267 @@ def fly(
     return s, True, maxit, p, p1, p2, p3
 
 
+# --- fast path: the pure sine plate -------------------------------------------------
+# For ``chi_p = G sin(phi)`` (no harmonics, no armature) the curvature of the relative
+# height is known in closed form, ``h'' = G sin(phi0 + s) - c`` with ``c = 1 + mu`` before
+# the apex and ``1 - mu`` after it, so the flight splits into intervals where ``h`` is
+# convex or concave, with edges at ``G sin(phi) = c``.  On each interval the exact
+# function gives certificates that need no global derivative bound:
+#
+# - convex, ``h >= 0``, ``h' >= 0``: ``h`` increases, no contact up to the interval's end;
+# - convex, ``h' < 0``: the tangent lies below ``h``, so ``h > 0`` up to the tangent's root
+#   (a Newton step from the safe side, converging monotonically to the first root);
+# - concave: ``h >= min(h(a), h(b))`` on ``[a, b]``, so one evaluation at ``b`` with
+#   ``h(b) > 0`` clears the whole interval; with ``h(b) <= 0`` the interval holds exactly
+#   one root (a concave function crosses zero downward once), found by any bracketed
+#   method.  The tangent at a point with ``h' < 0`` lies above ``h``, so its root is a
+#   point with ``h <= 0``: the first trial point of the bracket.
+#
+# The edges are placed ``SINE_EDGE`` rad early so that a takeoff exactly on the takeoff
+# line (``h'' = 0`` at ``s = 0`` up to rounding) starts inside its convex interval.  In
+# that sliver the wrong-signed curvature is at most ``G SINE_EDGE``, which moves any bound
+# by at most ``G SINE_EDGE^2 * (interval length) < 1e-19 * 8 * 4 pi``, far below the
+# contact tolerance ``htol = 1e-13``: no contact deeper than ``htol`` can be skipped.
+SINE_EDGE = 1e-10
+
+
+@njit(cache=True)
+def sine_alpha(g, c):
+    """Phase ``asin(c / g)`` where ``g sin(phi) = c`` on the rising side; ``-1`` if ``g <= c``."""
+    if g <= c:
+        return -1.0
+    return math.asin(c / g)
+
+
+@njit(cache=True)
+def sine_region(phi, al):
+    """Curvature interval of ``h'' = g sin(phi) - c`` holding ``phi``: ``(convex, end phase)``.
+
+    ``al = asin(c / g)`` (``-1``: ``g <= c``, concave everywhere, end ``inf``).  Convex on
+    ``[al, pi - al)`` modulo ``2 pi``, both edges moved ``SINE_EDGE`` earlier.  A phase
+    within rounding (``1e-13 (1 + phi)``) of an edge belongs to the interval that starts
+    there, so that a walk that has just reached an edge always moves on.
+    """
+    if al < 0.0:
+        return False, math.inf
+    a = al - SINE_EDGE
+    n = math.floor((phi - a) / TWO_PI)
+    r = phi - a - n * TWO_PI  # in [0, 2 pi): phase past the convex interval's start
+    w = math.pi - 2.0 * al  # convex width
+    tol = 1e-13 * (1.0 + abs(phi))
+    if r < w - tol:
+        return True, phi + (w - r)
+    if r < TWO_PI - tol:
+        return False, phi + (TWO_PI - r)
+    return True, phi + (TWO_PI - r) + w  # at the end of a concave interval
+
+
+@njit(cache=True)
+def sine_h(s, phi0, x0, v0, sa, xa, va, gu, gd, g):
+    """Relative height and its first two derivatives ``s`` after takeoff, pure sine plate.
+
+    Body as in :func:`fly` (apex at ``sa``, height ``xa``, velocity ``va`` there: 0, or
+    ``v0 <= 0`` with ``sa = 0``).  Returns ``(h, h', h'', sin(phi0 + s), cos(phi0 + s))``.
+    """
+    sn = math.sin(phi0 + s)
+    cs = math.cos(phi0 + s)
+    if s < sa:
+        xb = x0 + v0 * s - 0.5 * gu * s * s
+        vb = v0 - gu * s
+        ab = -gu
+    else:
+        ts = s - sa
+        xb = xa + va * ts - 0.5 * gd * ts * ts
+        vb = va - gd * ts
+        ab = -gd
+    return xb - g * sn, vb - g * cs, ab + g * sn, sn, cs
+
+
+@njit(cache=True)
+def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2, q3, guess):
+    """First contact after leaving ``(x0, v0)`` at ``phi0``: pure sine plate ``g sin(phi)``.
+
+    Same contract as :func:`fly`: returns ``(s, landed, n_eval, p, p1, p2, p3)``, the
+    contact is the first ``h <= htol`` with ``h' <= 0``, ``smax`` ends the search.  The
+    certificates come from the curvature intervals (comment block above) instead of
+    global derivative bounds.  ``al_u``, ``al_d``: :func:`sine_alpha` of ``(g, 1 + mu)`` and
+    ``(g, 1 - mu)``; ``q0..q3``: the plate at ``phi0``; ``guess`` (rad, ``<= 0``: none): a
+    predicted flight time (the previous flight's), used only to place trial points.
+
+    A trial point ``x`` past the certified region is evaluated and then:
+    ``h(x) <= 0`` with ``h(s) > 0`` on a convex or concave interval brackets exactly one
+    crossing (the set ``h <= 0`` of a convex function is an interval; a concave
+    function crosses downward once), solved by :func:`sine_bracket`; ``h(x) > 0`` clears
+    ``[s, x]`` when ``h`` is concave there, or convex and still decreasing at ``x``.
+    """
+    if v0 > 0.0:
+        sa = v0 / gu
+        xa = x0 + 0.5 * v0 * sa
+        va = 0.0
+    else:
+        sa = 0.0
+        xa = x0
+        va = v0
+    split = gu != gd  # with friction the apex is a curvature edge (h'' jumps up by 2 mu)
+    # the body passes below the plate's lowest point -g here: h <= 0 for certain
+    s_floor = sa + (va + math.sqrt(va * va + 2.0 * gd * (xa + g))) / gd
+    # the takeoff: rounding-sized h, h', h'' zeroed as in fly
+    h = x0 - q0
+    h1 = v0 - q1
+    h2 = (-gu if v0 > 0.0 else -gd) - q2
+    if abs(h) <= htol:
+        h = 0.0
+    if abs(h1) < 1e-12 * (1.0 + abs(v0)):
+        h1 = 0.0
+    if -1e-12 * (gu + g) < h2 < 0.0:
+        h2 = 0.0
+    sn = q0 / g if g > 0.0 else 0.0
+    cs = q1 / g if g > 0.0 else 1.0
+    if h <= htol and h1 <= 0.0 and (h1 < 0.0 or h < -htol or h2 < 0.0):
+        return 0.0, True, 0, q0, q1, q2, q3  # lands at once (or a touch without separation)
+    s = 0.0
+    known = True  # h, h1, h2 are known at s (else only h(s) > 0 is)
+    nev = 0
+    for _ in range(maxit):
+        up = s < sa
+        convex, end = sine_region(phi0 + s, al_u if up else al_d)
+        b = min(end - phi0, smax)
+        if split and up and sa < b:
+            b = sa
+        if convex:
+            if not known:  # (after the apex) the slope is needed
+                h, h1, h2, sn, cs = sine_h(s, phi0, x0, v0, sa, xa, va, gu, gd, g)
+                nev += 1
+                known = True
+                if h <= htol and h1 <= 0.0:
+                    return sine_polish(s, h, h1, g, sn, cs, nev)
+            tn = h / (-h1) if h1 < 0.0 else math.inf  # tangent (below h) reaches 0
+            if s + tn >= b:
+                # h' >= 0 (h increases) or the tangent stays positive: no contact before
+                # b, and h(b) > 0 unless a root sits exactly on b
+                if b >= smax:
+                    return smax, False, nev, 0.0, 0.0, 0.0, 0.0
+                s = b
+                known = False
+                continue
+            if tn <= 1e-14 * (1.0 + s):
+                return sine_polish(s, h, h1, g, sn, cs, nev)  # stalled on a tangency
+            # trial point: the guess when it lies beyond the certified Newton point,
+            # else the Halley point (longer than Newton's on a convex h)
+            x = s + tn
+            den = 1.0 - 0.5 * h * h2 / (h1 * h1)
+            if s + tn < guess < b:
+                x = guess
+            elif den > 0.0:
+                x = min(s + tn / den, b)
+            hx, hx1, hx2, snx, csx = sine_h(x, phi0, x0, v0, sa, xa, va, gu, gd, g)
+            nev += 1
+            if hx <= 0.0:
+                return sine_bracket(s, x, hx, hx1, hx2, snx, csx, phi0, x0, v0, sa, xa, va,
+                                    gu, gd, g, nev)  # fmt: skip
+            if hx1 < 0.0 or x == s + tn:
+                # convex and decreasing up to x (or x the certified Newton point)
+                s = x
+                h, h1, h2, sn, cs = hx, hx1, hx2, snx, csx
+                if h <= htol and h1 <= 0.0:
+                    return sine_polish(s, h, h1, g, sn, cs, nev)
+                continue
+            # h(x) > 0 but h turned upward before x: only [s, s + tn) is certified
+            s += tn
+            h, h1, h2, sn, cs = sine_h(s, phi0, x0, v0, sa, xa, va, gu, gd, g)
+            nev += 1
+            if h <= htol and h1 <= 0.0:
+                return sine_polish(s, h, h1, g, sn, cs, nev)
+            continue
+        # concave on [s, b] with h(s) > 0 (or = 0 with h' > 0)
+        if known and h <= htol and h1 <= 0.0:
+            return sine_polish(s, h, h1, g, sn, cs, nev)  # on the plate, not rising: contact
+        x = min(b, s_floor)  # below the plate's lowest point at s_floor: h <= 0 there
+        if known and h1 < 0.0:
+            x = min(x, s + h / (-h1))  # the tangent (above h) reaches 0: h <= 0 there
+        elif s < guess < x:
+            x = guess
+        elif known and h2 < 0.0:
+            # rising: the root of the quadratic Taylor model (a guess, not a bound)
+            x = min(x, s + (h1 + math.sqrt(h1 * h1 - 2.0 * h * h2)) / (-h2))
+        hx, hx1, hx2, snx, csx = sine_h(x, phi0, x0, v0, sa, xa, va, gu, gd, g)
+        nev += 1
+        if hx > htol or (hx > 0.0 and hx1 > 0.0):
+            # concave: h >= min(h(s), h(x)) > 0 on [s, x], no contact
+            if x >= smax:
+                return smax, False, nev, 0.0, 0.0, 0.0, 0.0
+            s = x
+            h, h1, h2, sn, cs = hx, hx1, hx2, snx, csx
+            known = True
+            continue
+        if hx > 0.0:
+            return sine_polish(x, hx, hx1, g, snx, csx, nev)  # within htol, descending
+        return sine_bracket(s, x, hx, hx1, hx2, snx, csx, phi0, x0, v0, sa, xa, va, gu, gd,
+                            g, nev)  # fmt: skip
+    return s, True, maxit, g * sn, g * cs, -g * sn, -g * cs
+
+
+@njit(cache=True)
+def sine_polish(s, h, h1, g, sn, cs, nev):
+    """Contact at ``s`` (``|h|`` at most ``htol`` or rounding): one Newton step onto the root.
+
+    ``sn, cs``: sine and cosine of the phase at ``s``.  The plate state follows by Taylor
+    (the step is below 1e-7, so dropped terms are below 1e-21).  Returns the tuple of
+    :func:`fly_sine`.
+    """
+    p, p1, p2, p3 = g * sn, g * cs, -g * sn, -g * cs
+    if h1 < 0.0 and h != 0.0:
+        dt = h / (-h1)
+        if abs(dt) < 1e-7:
+            s += dt
+            p += dt * (p1 + 0.5 * dt * p2)
+            p1 += dt * (p2 + 0.5 * dt * p3)
+            p2 += dt * p3
+    return s, True, nev, p, p1, p2, p3
+
+
+@njit(cache=True)
+def sine_bracket(lo, x, h, h1, h2, sn, cs, phi0, x0, v0, sa, xa, va, gu, gd, g, nev):
+    """The one crossing of ``h`` in ``(lo, x]`` given ``h(lo) > 0 >= h(x)`` (see fly_sine).
+
+    Halley steps from the latest point, kept inside the bracket (Newton, then bisection
+    as fallbacks); each evaluation narrows the bracket by the sign of ``h``, so the root
+    cannot be lost.  A Halley or Newton step below 1e-6 rad leaves an error below
+    rounding after the closing Newton step of :func:`sine_polish`.
+    """
+    hi = x
+    for _ in range(200):
+        if h == 0.0:
+            break
+        bis = False
+        if h1 != 0.0:
+            dn = -h / h1
+            if abs(dn) <= 4e-16 * (1.0 + x):
+                break  # on the root to rounding
+            den = 1.0 - 0.5 * h * h2 / (h1 * h1)
+            xn = x + (dn / den if den > 0.25 else dn)
+            if not (lo < xn < hi):
+                xn = x + dn
+        else:
+            xn = lo - 1.0
+        if not (lo < xn < hi):
+            xn = 0.5 * (lo + hi)
+            bis = True
+        if xn == x:
+            break
+        small = abs(xn - x) < 1e-6 * (1.0 + x)
+        x = xn
+        h, h1, h2, sn, cs = sine_h(x, phi0, x0, v0, sa, xa, va, gu, gd, g)
+        nev += 1
+        if h > 0.0:
+            lo = x
+        else:
+            hi = x
+        if (small and not bis) or hi - lo <= 4e-16 * (1.0 + hi):
+            break
+    return sine_polish(x, h, h1, g, sn, cs, nev)
+
+
 @njit(cache=True)
 def takeoff_ok(p1, p2, gu, gd):
     """Takeoff condition of a body riding the plate: plate accelerates down faster than gravity.
@@ -511,9 +773,15 @@ def trajectory(
     nsteps = g_true.shape[0]
     maxit = 200000
 
+    fast = par[P_FAST] > 0.0 and nh == 0 and not use_arm  # pure sine plate: fly_sine
+    g_al = -1.0  # Gamma of the cached curvature edges (fly_sine)
+    al_u = -1.0
+    al_d = -1.0
     g_win = -1.0  # Gamma of the cached takeoff window (pure sine plate)
     lo_win = -1.0
     hi_win = -1.0
+    sn_win = 0.0  # sin and cos of lo_win
+    cs_win = 1.0
     k = 0  # current step
     g = g_true[0]
     ncyc = 0  # whole drive cycles removed from the phase frame
@@ -542,6 +810,8 @@ def trajectory(
     tq3 = 0.0
     qa0 = 0.0
     qa1 = 0.0
+    qa2 = 0.0
+    qa3 = 0.0
     n_imp = 0  # flights in the current chatter sequence
     t_prev = 0.0  # the previous flight's duration
 
@@ -567,6 +837,8 @@ def trajectory(
                 if nh == 0 and not arm:
                     if g != g_win:  # the window depends on Gamma only: computed once per step
                         lo_win, hi_win = takeoff_window(g, mu)
+                        sn_win = math.sin(lo_win)
+                        cs_win = math.cos(lo_win)
                         g_win = g
                     pt, st = ride_window(ride_search, lim, lo_win, hi_win)
                 elif g * (1.0 + a2) + b2 <= gd:
@@ -578,7 +850,16 @@ def trajectory(
                     )  # fmt: skip
                 if st != 0 and pt < bound and k < nsteps - 1:
                     pt = bound  # no takeoff at this Gamma: the body rides on to the next step
-                pb0, pb1, pb2, pb3 = plate_eval(pt, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+                if fast and st == 0 and qa_ok and pt == phi_e:
+                    # takes off where it landed: the plate state is the contact's
+                    pb0, pb1, pb2, pb3 = qa0, qa1, qa2, qa3
+                elif fast and st == 0 and pt != ride_search:
+                    # a window start lo + 2 pi n: the plate there in closed form
+                    pb0, pb1, pb2, pb3 = g * sn_win, g * cs_win, -g * sn_win, -g * cs_win
+                else:
+                    pb0, pb1, pb2, pb3 = plate_eval(
+                        pt, g, hk, ha, th, arm, ay, av, aref, lam, om, f2
+                    )  # fmt: skip
                 if pend:
                     fr_ = 0.0
                     if mu > 0.0:
@@ -660,10 +941,20 @@ def trajectory(
             bound = TWO_PI * (step_end[k] - ncyc)
             if not tq_ok:
                 tq0, tq1, tq2, tq3 = plate_eval(phis, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
-            s, landed, nit, p, p1, p2, p3 = fly(
-                phis, x0, v0, bound - phis, g, gu, gd, hk, ha, th, arm, ay, av, aref,
-                lam, om, f2, m2, m3, m4, pmax, htol, maxit, tq0, tq1, tq2, tq3,
-            )  # fmt: skip
+            if fast:
+                if g != g_al:  # curvature edges depend on Gamma only: once per step
+                    al_u = sine_alpha(g, gu)
+                    al_d = sine_alpha(g, gd)
+                    g_al = g
+                s, landed, nit, p, p1, p2, p3 = fly_sine(
+                    phis, x0, v0, bound - phis, g, gu, gd, al_u, al_d, htol, maxit,
+                    tq0, tq1, tq2, tq3, t_prev,
+                )  # fmt: skip
+            else:
+                s, landed, nit, p, p1, p2, p3 = fly(
+                    phis, x0, v0, bound - phis, g, gu, gd, hk, ha, th, arm, ay, av, aref,
+                    lam, om, f2, m2, m3, m4, pmax, htol, maxit, tq0, tq1, tq2, tq3,
+                )  # fmt: skip
             tq_ok = False
             nit_tot += nit
             cur[C_EFRIC] += mu * path_length(s, x0, v0, gu, gd)
@@ -760,6 +1051,8 @@ def trajectory(
         qa_ok = not use_arm  # the armature's recoil changed the plate's velocity
         qa0 = p
         qa1 = p1
+        qa2 = p2
+        qa3 = p3
         rec[:] = cur
         pend = True
         riding = True

@@ -67,8 +67,12 @@ _BOOL = {"chatter", "settled"}
 _INT = {"start", "flight", "step"}
 
 
-def kernel_params(model: Model) -> np.ndarray:
-    """The ``par`` vector of :mod:`bouncelab.physics.kernels` for ``model``, shape ``(NPAR,)``."""
+def kernel_params(model: Model, fast: bool = True) -> np.ndarray:
+    """The ``par`` vector of :mod:`bouncelab.physics.kernels` for ``model``, shape ``(NPAR,)``.
+
+    ``fast=False`` sends pure sine plates through the general landing solver too (the
+    before/after comparison of ``tests/physics/test_fastpath_*.py``).
+    """
     p = model.params
     par = np.zeros(K.NPAR)
     par[K.P_S] = p.get("s", 1.0)
@@ -81,6 +85,7 @@ def kernel_params(model: Model) -> np.ndarray:
     par[K.P_HTOL] = CONTACT_TOL
     par[K.P_CAP] = CHATTER_CAP
     par[K.P_RIDE] = RIDE_CYCLES * 2.0 * math.pi
+    par[K.P_FAST] = 1.0 if fast else 0.0
     return par
 
 

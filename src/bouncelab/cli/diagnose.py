@@ -1,15 +1,87 @@
-"""``bouncelab diagnose``: not implemented yet."""
+"""``bouncelab diagnose RUN_DIR [--calibration CAL.json] -o OUT.json``: the gap diagnosis.
+
+Writes the JSON of CONTRACTS.md section 6 (more keys: docs/diagnosis.md). The run folder
+is only read; the output must lie outside it.
+"""
 
 from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
 
 from bouncelab.errors import BouncelabError
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("diagnose", help="(not implemented yet)")
-    p.add_argument("rest", nargs="*")
+    p = sub.add_parser(
+        "diagnose",
+        help="sim-to-real gap diagnosis of a sweep run (which effects, how far, where)",
+        description=(
+            "Refit each candidate effect (friction, restitution, harmonic, feedback, "
+            "gamma_scale) added to the baseline model, select effects forward on held-out "
+            "Gamma steps, and write the diagnosis JSON (CONTRACTS.md section 6)."
+        ),
+    )
+    p.add_argument("run_dir", metavar="RUN_DIR", help="sweep run folder (CONTRACTS.md section 1)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.json", help="output JSON file")
+    p.add_argument(
+        "--calibration", metavar="CAL.json", help="drop-test calibration (CONTRACTS.md section 4)"
+    )
+    p.add_argument(
+        "--fix-calibration",
+        action="store_true",
+        help="hold mu and e at the calibration's values instead of fitting them",
+    )
+    p.add_argument(
+        "--flights",
+        metavar="FLIGHTS",
+        help="the run's flight table (.parquet/.csv from `bouncelab extract`); "
+        "default: extract it from the recording",
+    )
+    p.add_argument("--baseline", default="ideal", help="model the effects are added to")
+    p.add_argument("--seed", type=int, default=0, help="seed of simulations and optimisers")
+    p.add_argument(
+        "--workers", type=int, default=2, help="processes for the fits of one round (default 2)"
+    )
+    p.add_argument(
+        "--timings", action="store_true", help="add wall-clock timings (not deterministic)"
+    )
     p.set_defaults(handler=run)
 
 
 def run(args) -> int:
-    raise BouncelabError(None, "'diagnose' is not implemented yet")
+    from bouncelab.gap.diagnose import diagnose_run
+    from bouncelab.physics import Model
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".json":
+        raise BouncelabError(out, "output must end in .json")
+    run_dir = Path(args.run_dir)
+    if out.resolve().is_relative_to(run_dir.resolve()):
+        raise BouncelabError(out, "output must not be written under the run folder it reads")
+    if args.workers < 1:
+        raise BouncelabError(None, f"--workers must be >= 1, not {args.workers}")
+    if args.fix_calibration and not args.calibration:
+        raise BouncelabError(None, "--fix-calibration needs --calibration CAL.json")
+    Model.parse(args.baseline)  # a bad model name is bad input: one error line
+    result = diagnose_run(
+        run_dir,
+        calibration=args.calibration,
+        baseline=args.baseline,
+        seed=args.seed,
+        flights=args.flights,
+        fix_calibration=args.fix_calibration,
+        workers=args.workers,
+        include_timings=args.timings,
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")
+    sel = ", ".join(result["selected"]) or "nothing"
+    verdict = "unexplained" if result["unexplained"] else "explained"
+    print(
+        f"wrote {out}: selected {sel}; gap {result['baseline']['gap']:.4g} -> "
+        f"{result['final_gap']:.4g} rad (noise floor {result['noise_floor']:.4g}), {verdict}",
+        file=sys.stderr,
+    )
+    return 0

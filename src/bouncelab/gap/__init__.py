@@ -61,3 +61,13 @@ __all__ = [
     "step_weights",
     "wasserstein_1d",
 ]
+
+
+def __getattr__(name: str):
+    """``diagnose_run`` and ``diagnose_flights`` on first use: they pull in the simulator,
+    which the distance functions above do not need."""
+    if name in ("diagnose_run", "diagnose_flights"):
+        from bouncelab.gap import diagnose
+
+        return getattr(diagnose, name)
+    raise AttributeError(f"module 'bouncelab.gap' has no attribute {name!r}")

@@ -1,0 +1,477 @@
+"""The gap diagnosis of a sweep run: which effects close the gap, how far, and where.
+
+:func:`diagnose_run` reads a run folder (and optionally its flight table and a drop-test
+calibration), refits every candidate effect added alone to the baseline, selects effects
+forward on held-out Gamma steps (:mod:`bouncelab.gap.select`), and states the result as
+the JSON of CONTRACTS.md section 6 plus more keys (docs/diagnosis.md lists them). Gaps
+are in radians of drive phase; ``gap`` values are means over the held-out steps.
+The output is deterministic: the same inputs and seed give the same dict.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bouncelab.errors import BouncelabError
+from bouncelab.gap.features import compare_features
+from bouncelab.gap.fit import (
+    K_CHOICES,
+    FitResult,
+    FitSettings,
+    Problem,
+    bootstrap_params,
+    fit_warnings,
+    intervals,
+    make_problem,
+    simulate,
+)
+from bouncelab.gap.regions import segment_regions
+from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
+from bouncelab.physics import EFFECTS, Model
+
+#: A mean takeoff-phase offset (model minus data, rad) beyond this after the final model
+#: is named unexplained: the flight-time gap cannot see a pure timing shift (a sensor delay).
+PHASE_TOL = 0.1
+
+#: Calibration keys (CONTRACTS.md section 4) and the model parameters they fix.
+CALIBRATION_PARAMS = {"mu": "mu", "restitution": "e"}
+
+
+def read_calibration(path: str | Path) -> dict:
+    """Read a drop-test calibration JSON (CONTRACTS.md section 4).
+
+    Returns ``{"mu": float, "restitution": float, ...}`` (other keys kept). Raises
+    :class:`BouncelabError` naming the file when it is missing, not JSON, or lacks a
+    finite ``mu`` or ``restitution`` in the model's valid range.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise BouncelabError(path, "calibration file not found")
+    try:
+        cal = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise BouncelabError(path, f"calibration is not valid JSON ({exc})") from None
+    if not isinstance(cal, dict):
+        raise BouncelabError(path, "calibration must be a JSON object")
+    for key in CALIBRATION_PARAMS:
+        v = cal.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise BouncelabError(path, f"calibration lacks a finite number {key!r}")
+        if not 0.0 <= v < 1.0:
+            raise BouncelabError(path, f"calibration {key}={v} is outside [0, 1)")
+    return cal
+
+
+def load_flights(path: str | Path, run_id: str) -> pd.DataFrame:
+    """A flight table written by ``bouncelab extract`` (CONTRACTS.md section 3).
+
+    Raises :class:`BouncelabError` naming the file for a missing column, another run's
+    flights, or negative / non-finite flight times.
+    """
+    from bouncelab.tables import read_table
+
+    table = read_table(path)
+    for col in ("step", "gamma", "T"):
+        if col not in table.columns:
+            raise BouncelabError(path, f"flight table lacks column {col!r}")
+    if "run" in table.columns:
+        runs = set(table["run"].astype(str))
+        if runs - {run_id}:
+            raise BouncelabError(path, f"flight table is of run(s) {sorted(runs)}, not {run_id!r}")
+    t = table["T"].to_numpy(dtype=float)
+    if not np.all(np.isfinite(t)) or np.any(t < 0):
+        raise BouncelabError(path, "flight table has flight times T that are not finite and >= 0")
+    return table
+
+
+def _recording_duration(run) -> float:
+    from bouncelab.runs import read_recording
+
+    return float(read_recording(run, roles=("continuity",)).duration_s)
+
+
+def _profile(problem: Problem, gaps: np.ndarray) -> pd.DataFrame:
+    """Per-step table (Gamma order) for :func:`bouncelab.gap.regions.segment_regions`."""
+    return pd.DataFrame(
+        {
+            "step": problem.steps["step"].to_numpy(),
+            "gamma": problem.steps["gamma"].to_numpy(dtype=float),
+            "gap": gaps,
+            "floor": problem.floor,
+            "floor_used": problem.floor,
+            "rel_gap": gaps / problem.floor,
+        }
+    )
+
+
+def _params(model: Model) -> dict:
+    return {k: float(v) for k, v in sorted(model.params.items())}
+
+
+def _fit_summary(fit: FitResult, problem: Problem, seed: int, n_boot: int) -> dict:
+    boot = bootstrap_params(fit, problem, n_boot=n_boot, seed=seed)
+    ci = intervals(fit, boot)
+    for name, value in fit.model.params.items():
+        ci.setdefault(name, [float(value), float(value)])  # fixed: a point
+    return {"params_ci": dict(sorted(ci.items())), "warnings": fit_warnings(fit, boot)}
+
+
+def _regions(
+    problem: Problem,
+    base_gaps: np.ndarray,
+    accepted: list[tuple[str, FitResult]],
+    cmp: dict | None,
+    select: SelectSettings,
+) -> list[dict]:
+    """Regions of the baseline gap over Gamma, with the gap after each accepted effect.
+
+    ``explained_by`` is the accepted effect that removed the largest part of a region's
+    baseline gap, when that part is at least half of it; None when the region was within
+    ``explained_ratio`` floors to begin with, or no effect removed half of its gap.
+    """
+    regions = segment_regions(_profile(problem, base_gaps), cmp)
+    gam = problem.steps["gamma"].to_numpy(dtype=float)
+    out = []
+    for reg in regions:
+        inside = (gam >= reg["gamma_min"]) & (gam <= reg["gamma_max"])
+        g0 = problem.mean(base_gaps, inside)
+        fl = problem.mean(problem.floor, inside)
+        after, drops, prev = [], [], g0
+        for eff, fit in accepted:
+            g = problem.mean(fit.gaps, inside)
+            after.append({"effect": eff, "gap": g})
+            drops.append((prev - g, eff))
+            prev = g
+        explained = None
+        if drops and g0 > select.explained_ratio * fl:
+            drop, eff = max(drops)
+            if drop >= 0.5 * g0:
+                explained = eff
+        out.append(
+            {
+                "gamma_min": reg["gamma_min"],
+                "gamma_max": reg["gamma_max"],
+                "gap": prev,
+                "explained_by": explained,
+                "gap_baseline": g0,
+                "noise_floor": fl,
+                "rel_gap_baseline": g0 / fl if fl > 0 else None,
+                "rel_gap": prev / fl if fl > 0 else None,
+                "gap_after": after,
+                "n_steps": reg["n_steps"],
+                "features": reg["features"],
+            }
+        )
+    return out
+
+
+def diagnose_flights(
+    run,
+    flights: pd.DataFrame,
+    duration_s: float,
+    *,
+    calibration: dict | None = None,
+    fix_calibration: bool = False,
+    baseline: str = "ideal",
+    seed: int = 0,
+    fit_settings: FitSettings | None = None,
+    select_settings: SelectSettings | None = None,
+    workers: int | None = None,
+    progress: bool | None = None,
+    include_timings: bool = False,
+) -> dict:
+    """The diagnosis of measured ``flights`` of a sweep ``run`` (see :func:`diagnose_run`).
+
+    ``run`` is a :class:`bouncelab.runs.Run`; ``duration_s`` the recording's length (s).
+    """
+    t0 = time.perf_counter()
+    fit_settings = fit_settings or FitSettings()
+    select_settings = select_settings or SelectSettings()
+    # one process unless asked: more use the "spawn" start method, which re-imports the
+    # caller's main module (a script needs an ``if __name__ == "__main__"`` guard)
+    workers = 1 if workers is None else max(1, int(workers))
+    base_model = Model.parse(baseline)
+    problem = make_problem(
+        run,
+        flights,
+        duration_s,
+        seed=seed,
+        n_starts=fit_settings.n_starts,
+        heldout_every=fit_settings.heldout_every,
+    )
+    if problem.heldout.sum() < 1 or problem.fit.sum() < 2:
+        raise BouncelabError(
+            run.yaml_path,
+            f"diagnosis needs at least 3 Gamma steps, the run has {len(problem.steps)}",
+        )
+    floor = problem.mean(problem.floor, problem.heldout)
+
+    fixed: dict = {}
+    if calibration is not None and fix_calibration:
+        fixed = {p: float(calibration[k]) for k, p in CALIBRATION_PARAMS.items()}
+    sel = forward_select(
+        problem,
+        floor,
+        baseline=base_model.name,
+        fixed=fixed,
+        candidates=[c for c in CANDIDATES if c not in base_model.effects],
+        fit_settings=fit_settings,
+        settings=select_settings,
+        seed=seed,
+        workers=workers,
+        progress=progress,
+    )
+    base_fit: FitResult = sel["baseline"]
+    g_base = heldout_gap(base_fit, problem)
+
+    def shrink(g: float) -> float:
+        return float((g_base - g) / g_base) if g_base > 0 else 0.0
+
+    candidates = []
+    for eff, fit in sel["rounds"][0] if sel["rounds"] else []:
+        g = heldout_gap(fit, problem)
+        candidates.append(
+            {
+                "effect": eff,
+                "params": _params(fit.model),
+                "gap": g,
+                "shrink": shrink(g),
+                "gap_fit": fit.objective,
+                "model": fit.model.name,
+                "n_evals": fit.n_evals,
+            }
+        )
+    steps, warnings, prev_g = [], [], g_base
+    for i, (eff, fit) in enumerate(sel["accepted"]):
+        g = heldout_gap(fit, problem)
+        summary = _fit_summary(fit, problem, seed + i, fit_settings.n_boot)
+        entry = {
+            "effect": eff,
+            "params": _params(fit.model),
+            "params_ci": summary["params_ci"],
+            "gap": g,
+            "shrink": float((prev_g - g) / g_base) if g_base > 0 else 0.0,
+            "shrink_total": shrink(g),
+            "model": fit.model.name,
+            "gap_fit": fit.objective,
+            "warnings": summary["warnings"],
+            "n_evals": fit.n_evals,
+        }
+        if calibration is not None:
+            entry["calibration"] = {
+                p: float(calibration[k])
+                for k, p in CALIBRATION_PARAMS.items()
+                if p in fit.model.params
+            }
+        warnings += [f"{fit.model.name}: {w}" for w in summary["warnings"]]
+        steps.append(entry)
+        prev_g = g
+
+    final: FitResult = sel["final"]
+    final_gap = heldout_gap(final, problem)
+    base_sim = simulate(problem, base_fit.model)
+    final_sim = simulate(problem, final.model) if sel["accepted"] else base_sim
+    cmp_base = compare_features(problem.data_table, base_sim, steps=problem.steps)
+    cmp_final = compare_features(problem.data_table, final_sim, steps=problem.steps)
+
+    reasons = []
+    if final_gap > select_settings.unexplained_ratio * floor:
+        reasons.append(
+            f"held-out gap {final_gap:.4g} rad is {final_gap / floor:.3g} noise floors "
+            f"(limit {select_settings.unexplained_ratio:g})"
+        )
+    phase_mean = cmp_final["phase_offset"]["mean"]
+    if phase_mean is not None and abs(phase_mean) > PHASE_TOL:
+        reasons.append(
+            f"takeoff phases differ by {phase_mean:+.3f} rad on average "
+            f"(limit {PHASE_TOL:g}), which flight times cannot show"
+        )
+
+    regions = _regions(problem, base_fit.gaps, sel["accepted"], cmp_base, select_settings)
+    out = {
+        "run": str(run.run_id),
+        "noise_floor": floor,
+        "baseline": {
+            "model": base_fit.model.name,
+            "gap": g_base,
+            "params": _params(base_fit.model),
+            "gap_fit": base_fit.objective,
+            "rel_gap": g_base / floor if floor > 0 else None,
+        },
+        "candidates": candidates,
+        "steps": steps,
+        "selected": [s["effect"] for s in steps],
+        "final_gap": final_gap,
+        "unexplained": bool(reasons),
+        "regions": regions,
+        "final_model": {"model": final.model.name, "params": _params(final.model)},
+        "final_rel_gap": final_gap / floor if floor > 0 else None,
+        "unexplained_reasons": reasons,
+        "stop": sel["stop"],
+        "rounds": [
+            [
+                {
+                    "effect": eff,
+                    "model": fit.model.name,
+                    "params": _params(fit.model),
+                    "gap": heldout_gap(fit, problem),
+                    "n_evals": fit.n_evals,
+                }
+                for eff, fit in tried
+            ]
+            for tried in sel["rounds"]
+        ],
+        "warnings": warnings,
+        "features_differing": {
+            "baseline": cmp_base["differing"],
+            "final": cmp_final["differing"],
+        },
+        "phase_offset": {"baseline": cmp_base["phase_offset"], "final": cmp_final["phase_offset"]},
+        "design": _design(problem, fit_settings, select_settings, baseline, seed, fixed),
+        "profile": {
+            "step": [int(s) for s in problem.steps["step"]],
+            "gamma": [float(g) for g in problem.steps["gamma"]],
+            "heldout": [bool(h) for h in problem.heldout],
+            "noise_floor": [float(v) for v in problem.floor],
+            "gap_baseline": [float(v) for v in base_fit.gaps],
+            "gap_after": [
+                {"effect": eff, "gap": [float(v) for v in fit.gaps]} for eff, fit in sel["accepted"]
+            ],
+        },
+    }
+    if calibration is not None:
+        out["calibration"] = {
+            "mu": float(calibration["mu"]),
+            "restitution": float(calibration["restitution"]),
+            "mu_ci": calibration.get("mu_ci"),
+            "restitution_ci": calibration.get("restitution_ci"),
+            "fixed": bool(fix_calibration),
+        }
+    if include_timings:
+        out["timings"] = {"total_s": time.perf_counter() - t0}
+    return _json_safe(out)
+
+
+def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> dict:
+    return {
+        "objective": "mean over fit steps of the per-step gap (rad), model under the run's "
+        "protocol with common random numbers",
+        "optimizer": (
+            f"differential_evolution(popsize={fit_settings.popsize}, "
+            f"maxiter={fit_settings.maxiter}, tol={fit_settings.tol}, polish=False, "
+            f"seed={seed}) on the new effect's parameters, then Nelder-Mead "
+            f"({fit_settings.local_evals} evaluations per parameter) on all"
+        ),
+        "heldout_every": fit_settings.heldout_every,
+        "n_steps": int(len(problem.steps)),
+        "n_fit_steps": int(problem.fit.sum()),
+        "n_heldout_steps": int(problem.heldout.sum()),
+        "seed": int(seed),
+        "n_starts": int(problem.n_starts),
+        "min_T": problem.min_T,
+        "k_choices": list(K_CHOICES),
+        "bounds": {p: list(v[1:]) for e in EFFECTS.values() for p, v in e.items()},
+        "baseline": baseline,
+        "fixed": fixed,
+        "n_boot": fit_settings.n_boot,
+        "stop_rule": {
+            "margin_floors": select_settings.margin,
+            "min_shrink": select_settings.min_shrink,
+            "explained_ratio": select_settings.explained_ratio,
+            "unexplained_ratio": select_settings.unexplained_ratio,
+            "max_effects": select_settings.max_effects,
+            "phase_tol": PHASE_TOL,
+        },
+    }
+
+
+def _json_safe(value):
+    """Plain Python types; NaN and infinities become None (strict JSON)."""
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_json_safe(v) for v in value.tolist()]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    return value
+
+
+def diagnose_run(
+    run_dir: str | Path,
+    calibration: dict | str | Path | None = None,
+    baseline: str = "ideal",
+    seed: int = 0,
+    *,
+    flights: pd.DataFrame | str | Path | None = None,
+    fix_calibration: bool = False,
+    fit_settings: FitSettings | None = None,
+    select_settings: SelectSettings | None = None,
+    workers: int | None = None,
+    progress: bool | None = None,
+    include_timings: bool = False,
+) -> dict:
+    """The sim-to-real gap diagnosis of a sweep run (CONTRACTS.md section 6, more keys).
+
+    Parameters
+    ----------
+    run_dir : the run folder (CONTRACTS.md section 1); only read.
+    calibration : a drop-test calibration (dict or path of its JSON, section 4), shown
+        beside the fitted ``mu`` and ``e``.
+    baseline : the model the candidate effects are added to (its parameters refitted).
+    seed : seed of the simulations' start phases, the optimisers and the bootstrap.
+    flights : the run's measured flight table (DataFrame or path); default: extracted
+        from the recording with :func:`bouncelab.flights.extract_run`.
+    fix_calibration : hold ``mu`` and ``e`` at the calibration's values.
+    fit_settings, select_settings : budget and stop rule.
+    workers : processes for the fits of one round (default 1; see :func:`diagnose_flights`).
+    progress : a progress bar on stderr (default: when it is a terminal).
+    include_timings : add wall-clock ``timings`` (the only non-deterministic key).
+
+    Returns
+    -------
+    dict, JSON-ready.
+    """
+    from bouncelab.runs import load_run
+
+    run = load_run(run_dir)
+    if run.kind != "sweep":
+        raise BouncelabError(run.yaml_path, f"run is a {run.kind} run; diagnose needs a sweep")
+    if calibration is not None and not isinstance(calibration, dict):
+        calibration = read_calibration(calibration)
+    if fix_calibration and calibration is None:
+        raise BouncelabError(None, "--fix-calibration needs a calibration")
+    if flights is None:
+        from bouncelab.flights import extract_run
+
+        table, qc = extract_run(run_dir)
+        duration = float(qc["t_end_s"].max()) if len(qc) else _recording_duration(run)
+    else:
+        table = flights if isinstance(flights, pd.DataFrame) else load_flights(flights, run.run_id)
+        duration = _recording_duration(run)
+    return diagnose_flights(
+        run,
+        table,
+        duration,
+        calibration=calibration,
+        fix_calibration=fix_calibration,
+        baseline=baseline,
+        seed=seed,
+        fit_settings=fit_settings,
+        select_settings=select_settings,
+        workers=workers,
+        progress=progress,
+        include_timings=include_timings,
+    )

@@ -1,0 +1,513 @@
+"""Refitting a model's parameters to a sweep run: the objective, the optimiser, intervals.
+
+The objective of a parameter vector is the weighted mean (weights ``1 / floor`` of the
+data, :meth:`Problem.mean`) over the *fit* Gamma steps of the per-step gap (``gap`` of
+:func:`bouncelab.gap.distances.gap_table`, radians of drive phase) between the measured
+flights and the model simulated under the run's own protocol
+(:func:`bouncelab.protocol.simulate_run`). Every evaluation uses the same
+seed and start phases (common random numbers), so the objective is a deterministic
+function of the parameters. It is non-smooth (orbits appear and vanish), so the
+optimiser is global and derivative-free: :func:`scipy.optimize.differential_evolution`
+with ``polish=False`` and a fixed seed, then a short Nelder-Mead refinement from the best
+point (no gradients). Each evaluation's per-step gaps over *all* steps are kept; the
+bootstrap over steps re-weights them (see :func:`bootstrap_params`), so parameter
+intervals cost no new simulations.
+
+Held-out design: the run's steps in Gamma order are dealt into fit and held-out steps,
+every third step held out (:func:`heldout_mask`), so a flexible effect cannot buy a
+smaller gap by fitting noise of the steps it is judged on.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import differential_evolution, minimize
+
+from bouncelab.gap.distances import FlightSample, gap_table, prepare_flights
+from bouncelab.gap.noise import noise_floor
+from bouncelab.physics import EFFECTS, Model
+from bouncelab.protocol import run_protocol, simulate_run
+from bouncelab.runs import Run
+
+#: Harmonic multiples tried for ``k`` (a discrete choice, not a continuous parameter: the
+#: gap is very rugged in ``k``). 0.5 stands for a low-frequency shaker oscillation, 2 to 4
+#: for harmonic distortion (the seed's fig. 10 uses the third harmonic).
+K_CHOICES = (0.5, 2.0, 3.0, 4.0)
+
+#: Parameters that wrap around (a fit "on its bound" there means nothing).
+PERIODIC = {"psi"}
+
+#: A parameter closer than this share of its range to a bound is reported on the bound.
+BOUND_SHARE = 0.01
+
+#: |correlation| across bootstrap refits above which two parameters are said to trade off.
+TRADE_OFF_CORR = 0.9
+
+#: Smallest per-step noise floor of the diagnosis (rad). The data floor of a periodic step
+#: is about 0; the virtual rig's null runs (compliant contact, sensor chain) differ from
+#: the ideal model by up to 0.03 rad on locked orbits, a model error no effect should be
+#: fitted to (docs/diagnosis.md). Three samples at 20 kHz and a 30 Hz drive.
+MIN_FLOOR = 0.03
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """Budget and design of one fit (all counts are simulations unless stated).
+
+    Attributes
+    ----------
+    n_starts : ensemble members per simulation (start phases fixed by ``seed``).
+    popsize : differential-evolution population per free parameter.
+    maxiter : differential-evolution generations after the initial population.
+    tol : relative convergence tolerance of differential evolution.
+    local_evals : Nelder-Mead evaluations per free parameter after the global search.
+    n_boot : bootstrap resamples of the fit steps for the intervals.
+    heldout_every : every this-many-th step (in Gamma order) is held out.
+    """
+
+    n_starts: int = 1
+    popsize: int = 6
+    maxiter: int = 10
+    tol: float = 0.01
+    local_evals: int = 10
+    n_boot: int = 200
+    heldout_every: int = 3
+
+
+@dataclass(frozen=True)
+class FreeParam:
+    """One fitted parameter: its bounds, or a discrete set of values (``choices``)."""
+
+    name: str
+    lower: float
+    upper: float
+    choices: tuple[float, ...] | None = None
+
+
+@dataclass
+class Problem:
+    """A sweep run prepared for many model evaluations.
+
+    Attributes
+    ----------
+    run : the run (protocol: steps, drive frequency, settle cycles).
+    data : the measured settled flights, prepared once.
+    data_table : the measured flight table (CONTRACTS.md section 3).
+    duration_s : end of the recording (s).
+    steps : DataFrame ``step``, ``gamma`` of every protocol step, in Gamma order, shape (G,).
+    heldout : bool ndarray, shape (G,): True for held-out steps.
+    min_T : rad, simulated flights shorter than this are dropped (the data cannot resolve
+        them: a few samples of the recording).
+    floor : ndarray (G,), rad, the data's noise floor per step, at least ``min_floor``.
+    seed, n_starts : the common random numbers of every simulation.
+    """
+
+    run: Run
+    data: FlightSample
+    data_table: pd.DataFrame
+    duration_s: float
+    steps: pd.DataFrame
+    heldout: np.ndarray
+    min_T: float
+    floor: np.ndarray
+    seed: int = 0
+    n_starts: int = 1
+
+    @property
+    def fit(self) -> np.ndarray:
+        """bool ndarray, shape (G,): the steps the parameters are fitted on."""
+        return ~self.heldout
+
+    @property
+    def weights(self) -> np.ndarray:
+        """ndarray (G,), 1/rad: step weights ``1 / floor`` of every mean over steps."""
+        return 1.0 / self.floor
+
+    def mean(self, values: np.ndarray, mask: np.ndarray) -> float:
+        """Weighted mean of per-step ``values`` (shape (G,)) over the steps of ``mask``.
+
+        Weights ``1 / floor``: a step counts by how precisely the data pin it down, so
+        chaotic steps of few, broad flights (floors of radians) do not drown the
+        periodic ones (floors of hundredths). The weights come from the data alone, so
+        no model can lower its gap by being noisy. NaN when ``mask`` is empty.
+        """
+        w = self.weights[mask]
+        return float(np.sum(w * values[mask]) / np.sum(w)) if mask.any() else float("nan")
+
+
+def heldout_mask(n_steps: int, every: int = 3) -> np.ndarray:
+    """Held-out steps among ``n_steps`` in Gamma order: indices ``i % every == every // 2``.
+
+    Interleaved, so that fit and held-out steps cover the same Gamma range; with
+    ``every = 3`` the first and last step are fit steps. Returns bool ndarray (n_steps,).
+    """
+    if every < 2:
+        raise ValueError("heldout_every must be at least 2")
+    idx = np.arange(n_steps)
+    return idx % every == every // 2
+
+
+def resolution_T(run: Run, samples: float = 2.0) -> float:
+    """Shortest flight the recording resolves: ``samples`` samples in radians of drive phase."""
+    return 2.0 * math.pi * float(run.drive_frequency_hz) * samples / float(run.sample_rate_hz)
+
+
+def make_problem(
+    run: Run,
+    flights: pd.DataFrame,
+    duration_s: float,
+    *,
+    seed: int = 0,
+    n_starts: int = 1,
+    heldout_every: int = 3,
+    min_floor: float = MIN_FLOOR,
+) -> Problem:
+    """Prepare a run and its measured flights for fitting (see :class:`Problem`).
+
+    The per-step floor is :func:`bouncelab.gap.noise.noise_floor` of the data alone (the
+    data against an independent sample of its own size and spread), at least
+    ``min_floor`` rad.
+    """
+    proto = run_protocol(run, duration_s)
+    steps = proto[["step", "gamma"]].sort_values(["gamma", "step"], kind="stable")
+    steps = steps.reset_index(drop=True)
+    data_table = flights.reset_index(drop=True)
+    min_T = resolution_T(run)
+    data_table = data_table.loc[data_table["T"].to_numpy(dtype=float) >= min_T]
+    floor = align_steps(noise_floor(data_table, steps=steps), steps)["floor"]
+    return Problem(
+        run=run,
+        data=prepare_flights(data_table, name="data"),
+        data_table=data_table,
+        duration_s=float(duration_s),
+        steps=steps,
+        heldout=heldout_mask(len(steps), heldout_every),
+        min_T=min_T,
+        floor=np.maximum(floor.to_numpy(dtype=float), min_floor),
+        seed=int(seed),
+        n_starts=int(n_starts),
+    )
+
+
+def simulate(problem: Problem, model: Model) -> pd.DataFrame:
+    """The model under the run's protocol with the common random numbers, as a flight table.
+
+    Flights shorter than ``problem.min_T`` (chatter the recording cannot resolve) are
+    dropped, as they are from the measured table.
+    """
+    sim = simulate_run(
+        problem.run, model, problem.duration_s, n_starts=problem.n_starts, seed=problem.seed
+    )
+    return sim.loc[sim["T"].to_numpy(dtype=float) >= problem.min_T].reset_index(drop=True)
+
+
+def step_gaps(problem: Problem, model: Model) -> np.ndarray:
+    """Per-step gap (rad) of ``model`` against the data, ndarray shape (G,) in step order
+    of ``problem.steps``."""
+    table = gap_table(problem.data, simulate(problem, model), steps=problem.steps)
+    return align_steps(table, problem.steps)["gap"].to_numpy(dtype=float)
+
+
+def align_steps(table: pd.DataFrame, steps: pd.DataFrame) -> pd.DataFrame:
+    """Rows of a per-step table in the order of ``steps`` (Gamma order)."""
+    pos = pd.Index(table["step"].to_numpy()).get_indexer(steps["step"].to_numpy())
+    if np.any(pos < 0):
+        raise ValueError("gap table lacks some protocol steps")
+    return table.iloc[pos].reset_index(drop=True)
+
+
+def free_params(effects, fixed: dict | None = None) -> list[FreeParam]:
+    """Fitted parameters of ``effects`` (names of CONTRACTS.md section 5), in canonical
+    order, within :data:`bouncelab.physics.EFFECTS` bounds; those in ``fixed`` are left
+    out. The harmonic ``k`` is a choice among :data:`K_CHOICES`."""
+    fixed = fixed or {}
+    out = []
+    for eff in EFFECTS:
+        if eff not in effects:
+            continue
+        for name, (_default, lo, hi) in EFFECTS[eff].items():
+            if name in fixed:
+                continue
+            if name == "k":
+                out.append(FreeParam(name, 0.0, len(K_CHOICES) - 1.0, K_CHOICES))
+            else:
+                out.append(FreeParam(name, float(lo), float(hi)))
+    return out
+
+
+def decode(free: list[FreeParam], x: np.ndarray) -> dict:
+    """Parameter dict from an optimiser vector (choices indexed by the rounded value)."""
+    out = {}
+    for p, v in zip(free, np.asarray(x, dtype=float), strict=True):
+        if p.choices is not None:
+            out[p.name] = float(p.choices[int(np.clip(np.rint(v), 0, len(p.choices) - 1))])
+        else:
+            out[p.name] = float(np.clip(v, p.lower, p.upper))
+    return out
+
+
+def encode(free: list[FreeParam], params: dict) -> np.ndarray:
+    """Optimiser vector of a parameter dict (the nearest choice for discrete ones)."""
+    x = []
+    for p in free:
+        v = float(params[p.name])
+        if p.choices is not None:
+            x.append(float(np.argmin(np.abs(np.asarray(p.choices) - v))))
+        else:
+            x.append(float(np.clip(v, p.lower, p.upper)))
+    return np.asarray(x)
+
+
+@dataclass
+class FitResult:
+    """A refitted model.
+
+    Attributes
+    ----------
+    model : the model with the best parameters.
+    free : the fitted parameters.
+    objective : rad, the mean gap over the fit steps at the best parameters.
+    gaps : ndarray (G,), rad, per-step gap at the best parameters (Gamma order).
+    cloud_x : ndarray (n_evals, len(free)), every evaluated optimiser vector.
+    cloud_gaps : ndarray (n_evals, G), the per-step gaps of each evaluation.
+    n_evals, seconds : cost of the fit.
+    """
+
+    model: Model
+    free: list[FreeParam]
+    objective: float
+    gaps: np.ndarray
+    cloud_x: np.ndarray
+    cloud_gaps: np.ndarray
+    n_evals: int
+    seconds: float
+    extra: dict = field(default_factory=dict)
+
+
+class _Evaluator:
+    """Objective with a record of every evaluation (vector and per-step gaps)."""
+
+    def __init__(self, problem: Problem, model_name: str, base: dict, free: list[FreeParam]):
+        self.problem, self.model_name, self.base, self.free = problem, model_name, base, free
+        self.xs: list[np.ndarray] = []
+        self.gaps: list[np.ndarray] = []
+        self._cache: dict[tuple, float] = {}
+
+    def model(self, x) -> Model:
+        return Model.parse(self.model_name, {**self.base, **decode(self.free, x)})
+
+    def __call__(self, x) -> float:
+        params = decode(self.free, x)
+        key = tuple(sorted(params.items()))
+        if key in self._cache:  # DE re-proposes the same discrete k often
+            return self._cache[key]
+        g = step_gaps(self.problem, self.model(x))
+        self.xs.append(encode(self.free, params))
+        self.gaps.append(g)
+        value = self.problem.mean(g, self.problem.fit) if self.problem.fit.any() else 0.0
+        self._cache[key] = value
+        return value
+
+
+def fit_model(
+    problem: Problem,
+    model_name: str,
+    base: dict | None = None,
+    *,
+    fixed: dict | None = None,
+    search: tuple[str, ...] | None = None,
+    settings: FitSettings | None = None,
+    seed: int = 0,
+) -> FitResult:
+    """Refit ``model_name``'s parameters to the run (see the module docstring).
+
+    Parameters
+    ----------
+    problem : from :func:`make_problem`.
+    model_name : e.g. ``"friction+restitution"``.
+    base : parameter values: the start of the search for fitted ones (default: the
+        ``EFFECTS`` defaults) and the value of fixed ones.
+    fixed : parameters held at these values, not fitted (e.g. a drop-test calibration).
+    search : names of the parameters the global search explores (default: all fitted
+        ones); the others start at their ``base`` value and move only in the local
+        refinement. Forward selection searches the new effect's parameters globally and
+        refines all together.
+    settings : budget, see :class:`FitSettings`.
+    seed : seed of the optimiser (the simulation's seed is ``problem.seed``).
+
+    Returns
+    -------
+    FitResult (deterministic for the same inputs).
+    """
+    t0 = time.perf_counter()
+    settings = settings or FitSettings()
+    proto = Model.parse(model_name)
+    # fixed values of effects outside this model (a calibrated mu in a restitution fit) drop
+    fixed = {k: float(v) for k, v in (fixed or {}).items() if k in proto.params}
+    free = free_params(proto.effects, fixed)
+    start = {**_defaults(free), **(base or {})}
+    ev = _Evaluator(problem, model_name, fixed, free)
+    x = encode(free, start)
+    names = [p.name for p in free]
+    glob = [i for i, n in enumerate(names) if search is None or n in search]
+    if glob:
+        sub = [free[i] for i in glob]
+
+        def objective(z):
+            y = x.copy()
+            y[glob] = z
+            return ev(y)
+
+        de = differential_evolution(
+            objective,
+            [(p.lower, p.upper) for p in sub],
+            seed=seed,
+            popsize=settings.popsize,
+            maxiter=settings.maxiter,
+            tol=settings.tol,
+            polish=False,
+            init="latinhypercube",  # sobol would round the population up to 2^m
+            x0=x[glob],
+            integrality=[p.choices is not None for p in sub],
+            updating="deferred",
+        )
+        x[glob] = de.x
+    if free:
+        _refine(ev, free, x, settings.local_evals * len(free))
+    else:
+        ev(x)
+    cloud_x = np.asarray(ev.xs, dtype=float).reshape(len(ev.xs), len(free))
+    cloud_gaps = np.asarray(ev.gaps, dtype=float)
+    w = problem.weights * problem.fit
+    values = cloud_gaps @ w / w.sum() if problem.fit.any() else np.zeros(len(ev.xs))
+    i = int(np.argmin(values))  # the best evaluation overall (global search and refinement)
+    return FitResult(
+        model=ev.model(cloud_x[i]),
+        free=free,
+        objective=float(values[i]),
+        gaps=cloud_gaps[i],
+        cloud_x=cloud_x,
+        cloud_gaps=cloud_gaps,
+        n_evals=len(ev.xs),
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _defaults(free: list[FreeParam]) -> dict:
+    out = {}
+    for p in free:
+        for eff in EFFECTS.values():
+            if p.name in eff:
+                out[p.name] = eff[p.name][0]
+    return out
+
+
+def _refine(ev: _Evaluator, free: list[FreeParam], x: np.ndarray, max_evals: int) -> np.ndarray:
+    """A short Nelder-Mead search over the continuous parameters from ``x`` (no gradients).
+
+    Discrete choices stay at their value. The simplex starts at 5 % of each range, a
+    scale the global search resolves; the objective clips to the bounds.
+    """
+    cont = [i for i, p in enumerate(free) if p.choices is None]
+    if not cont or max_evals < 2:
+        return x
+    lo = np.array([free[i].lower for i in cont])
+    hi = np.array([free[i].upper for i in cont])
+
+    def sub(z):
+        y = x.copy()
+        y[cont] = np.clip(z, lo, hi)
+        return ev(y)
+
+    z0 = x[cont]
+    step = 0.05 * (hi - lo)
+    simplex = [z0] + [z0 + np.where(np.arange(len(cont)) == j, step, 0.0) for j in range(len(cont))]
+    simplex = np.array([np.clip(s, lo, hi) for s in simplex])
+    # a vertex on the upper bound would collapse the simplex: step inwards there
+    for j in range(len(cont)):
+        if simplex[j + 1, j] == simplex[0, j]:
+            simplex[j + 1, j] = z0[j] - step[j]
+    res = minimize(
+        sub,
+        z0,
+        method="Nelder-Mead",
+        options={"maxfev": max_evals, "initial_simplex": simplex, "xatol": 1e-4, "fatol": 1e-6},
+    )
+    y = x.copy()
+    y[cont] = np.clip(res.x, lo, hi)
+    return y
+
+
+def bootstrap_params(
+    fit: FitResult, problem: Problem, n_boot: int = 200, seed: int = 0
+) -> np.ndarray:
+    """Refits over bootstrap resamples of the fit steps, on the evaluations already made.
+
+    Each resample draws the fit steps with replacement; its refit is the evaluated
+    parameter vector with the least resampled mean gap. This needs no new simulation,
+    and its resolution is that of the evaluations near the optimum (the late population
+    of the global search and the local refinement): an interval narrower than their
+    spacing comes out as a single value.
+
+    Returns
+    -------
+    ndarray (n_boot, len(fit.free)): the parameter values (decoded) of each refit.
+    """
+    idx = np.flatnonzero(problem.fit)
+    if len(fit.free) == 0 or len(idx) == 0 or len(fit.cloud_x) == 0:
+        return np.zeros((n_boot, len(fit.free)))
+    rng = np.random.default_rng(seed)
+    counts = rng.multinomial(len(idx), np.full(len(idx), 1.0 / len(idx)), size=n_boot)
+    # weighted sums (the common denominator of one resample does not change its argmin)
+    values = (counts * problem.weights[idx]) @ fit.cloud_gaps[:, idx].T  # (n_boot, n_evals)
+    best = np.argmin(values, axis=1)
+    decoded = np.array([list(decode(fit.free, x).values()) for x in fit.cloud_x])
+    return decoded[best]
+
+
+def intervals(fit: FitResult, boot: np.ndarray, level: float = 0.95) -> dict:
+    """Percentile intervals ``{name: [lo, hi]}`` of the bootstrap refits, widened to hold
+    the best value (a discrete cloud can leave it just outside)."""
+    out = {}
+    q = (1.0 - level) / 2.0
+    for j, p in enumerate(fit.free):
+        best = float(fit.model.params[p.name])
+        lo, hi = np.quantile(boot[:, j], [q, 1.0 - q]) if len(boot) else (best, best)
+        out[p.name] = [float(min(lo, best)), float(max(hi, best))]
+    return out
+
+
+def fit_warnings(fit: FitResult, boot: np.ndarray) -> list[str]:
+    """Warnings about a fit: parameters on a bound, pairs that trade off.
+
+    On a bound: within :data:`BOUND_SHARE` of the range from a bound of
+    :data:`bouncelab.physics.EFFECTS` (periodic and discrete parameters excepted). Trade
+    off: |Pearson correlation| of two parameters across the bootstrap refits above
+    :data:`TRADE_OFF_CORR`.
+    """
+    out = []
+    for p in fit.free:
+        if p.choices is not None or p.name in PERIODIC:
+            continue
+        v = float(fit.model.params[p.name])
+        span = p.upper - p.lower
+        if v - p.lower <= BOUND_SHARE * span:
+            out.append(f"{p.name}={v:.4g} sits on its lower bound {p.lower:g}")
+        elif p.upper - v <= BOUND_SHARE * span:
+            out.append(f"{p.name}={v:.4g} sits on its upper bound {p.upper:g}")
+    n = len(fit.free)
+    if len(boot) > 2 and n > 1:
+        sd = boot.std(axis=0)
+        for i in range(n):
+            for j in range(i + 1, n):
+                if sd[i] > 0 and sd[j] > 0:
+                    r = float(np.corrcoef(boot[:, i], boot[:, j])[0, 1])
+                    if abs(r) > TRADE_OFF_CORR:
+                        a, b = fit.free[i].name, fit.free[j].name
+                        out.append(f"{a} and {b} trade off (bootstrap correlation {r:+.2f})")
+    return out

@@ -1,0 +1,218 @@
+"""Forward selection of candidate effects, judged on held-out Gamma steps.
+
+Round by round, every effect of the library not yet in the model is added alone to the
+current model and refitted (:func:`bouncelab.gap.fit.fit_model`: the new effect's
+parameters searched globally, all parameters refined together). The addition with the
+smallest held-out gap is accepted when it shrinks the held-out gap
+
+- by at least ``margin`` noise floors, and
+- by at least ``min_shrink`` of the current gap,
+
+and selection stops when no addition passes, when the current gap is already within
+``explained_ratio`` noise floors, or after ``max_effects`` effects. All gaps here are
+weighted means over held-out steps in radians (:meth:`bouncelab.gap.fit.Problem.mean`);
+the noise floor is the same mean of the data's own floor.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import sys
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+
+from bouncelab.gap.fit import K_CHOICES, FitResult, FitSettings, Problem, fit_model
+from bouncelab.physics import EFFECT_ORDER, Model
+
+#: The candidate effects (CONTRACTS.md section 5), in the order they are tried.
+CANDIDATES = EFFECT_ORDER
+
+
+@dataclass(frozen=True)
+class SelectSettings:
+    """Stop rule of the forward selection (gaps in units of the held-out noise floor).
+
+    Attributes
+    ----------
+    margin : an accepted effect removes at least this many noise floors of held-out gap.
+    min_shrink : and at least this share of the current held-out gap.
+    explained_ratio : no effect is added once the held-out gap is at most this many
+        noise floors. The virtual rig's null case (no effect added; compliant contact,
+        sensor chain) leaves 1.2-2 floors against the ideal model, so 1 would be too strict.
+    unexplained_ratio : the final held-out gap above this many floors is "unexplained".
+    max_effects : at most this many effects are accepted.
+    """
+
+    margin: float = 1.0
+    min_shrink: float = 0.1
+    explained_ratio: float = 3.0
+    unexplained_ratio: float = 3.0
+    max_effects: int = 3
+
+
+def model_name(effects) -> str:
+    """Canonical model name of a set of effects (``"ideal"`` when empty)."""
+    return Model.parse("+".join(effects) if effects else "ideal").name
+
+
+def heldout_gap(fit: FitResult, problem: Problem) -> float:
+    """Weighted mean gap (rad, :meth:`Problem.mean`) over the held-out steps."""
+    return problem.mean(fit.gaps, problem.heldout)
+
+
+def _fit_job(args) -> FitResult:
+    problem, name, base, fixed, search, settings, seed = args
+    return fit_model(problem, name, base, fixed=fixed, search=search, settings=settings, seed=seed)
+
+
+def process_pool(workers: int):
+    """A pool of ``workers`` processes for the fits, or a null context for one worker.
+
+    Started with ``spawn``, not ``fork``: the physics kernels use numba's OpenMP thread
+    pool, which is not safe to fork once started. One pool serves every round, so the
+    workers import and load the compiled kernels once.
+    """
+    if workers <= 1:
+        return contextlib.nullcontext(None)
+    ctx = multiprocessing.get_context("spawn")
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+
+
+def fit_many(jobs: list[tuple], pool=None, progress: bool | None = None) -> list[FitResult]:
+    """Run :func:`fit_model` jobs (argument tuples), in ``pool`` when given.
+
+    Results come back in job order and do not depend on the pool (each fit is seeded).
+    A progress bar is shown on a terminal (``progress=None``: when stderr is a TTY).
+    """
+    from tqdm import tqdm
+
+    if progress is None:
+        progress = sys.stderr.isatty()
+    bar = tqdm(total=len(jobs), desc="fits", unit="fit", disable=not progress, leave=False)
+    try:
+        if pool is not None and len(jobs) > 1:
+            futures = [pool.submit(_fit_job, job) for job in jobs]
+            for fut in as_completed(futures):
+                fut.result()  # re-raise a worker's error at once
+                bar.update()
+            return [fut.result() for fut in futures]
+        results = []
+        for job in jobs:
+            results.append(_fit_job(job))
+            bar.update()
+        return results
+    finally:
+        bar.close()
+
+
+def _discrete_splits(effect: str, fixed: dict) -> list[dict]:
+    """One fit per value of a discrete parameter (the harmonic ``k``), else one fit.
+
+    A separate global search per ``k`` explores ``a`` and ``psi`` properly for each
+    multiple; one search over all three mixes the choices and misses narrow basins.
+    """
+    if effect == "harmonic" and "k" not in fixed:
+        return [{"k": k} for k in K_CHOICES]
+    return [{}]
+
+
+def _best_of(effect: str, owners: list[str], fits: list[FitResult]) -> FitResult:
+    """The fit of ``effect`` with the least fit-step objective (never the held-out gap,
+    which judges the effect and must not choose its parameters); ``n_evals`` summed."""
+    mine = [f for o, f in zip(owners, fits, strict=True) if o == effect]
+    best = min(mine, key=lambda f: f.objective)
+    best.n_evals = sum(f.n_evals for f in mine)
+    best.seconds = sum(f.seconds for f in mine)
+    return best
+
+
+def forward_select(
+    problem: Problem,
+    floor: float,
+    *,
+    baseline: str = "ideal",
+    base_params: dict | None = None,
+    fixed: dict | None = None,
+    candidates=CANDIDATES,
+    fit_settings: FitSettings | None = None,
+    settings: SelectSettings | None = None,
+    seed: int = 0,
+    workers: int = 1,
+    progress: bool | None = None,
+) -> dict:
+    """Forward selection from ``baseline`` over ``candidates`` (see the module docstring).
+
+    Parameters
+    ----------
+    problem : from :func:`bouncelab.gap.fit.make_problem`.
+    floor : rad, the held-out noise floor (mean over held-out steps).
+    baseline : model the effects are added to; its own parameters are refitted first
+        (unless ``fixed``).
+    base_params : starting values of parameters (e.g. of the baseline).
+    fixed : parameters held at these values in every fit (e.g. ``--fix-calibration``).
+    seed : seed of the optimisers.
+    workers : processes for the fits of one round.
+
+    Returns
+    -------
+    dict with ``baseline`` (FitResult), ``rounds`` (list of lists of
+    ``(effect, FitResult)``: every addition tried in each round; the first round is
+    fitted even when the baseline is within the floor), ``accepted`` (list of
+    ``(effect, FitResult)`` in order), ``final`` (FitResult), ``stop`` (why it stopped).
+    """
+    fit_settings = fit_settings or FitSettings()
+    settings = settings or SelectSettings()
+    fixed = dict(fixed or {})
+    base_model = Model.parse(baseline)
+    start = {**(base_params or {})}
+    with process_pool(workers) as pool:
+        (base_fit,) = fit_many(
+            [(problem, base_model.name, start, fixed, None, fit_settings, seed)], None, progress
+        )
+        current = base_fit
+        effects = list(base_model.effects)
+        rounds, accepted = [], []
+        stop = "max_effects"
+        while len(accepted) < settings.max_effects:
+            g_cur = heldout_gap(current, problem)
+            within = g_cur <= settings.explained_ratio * floor
+            if within and rounds:
+                stop = "within_floor"
+                break
+            todo = [e for e in candidates if e not in effects]
+            if not todo:
+                stop = "no_candidates"
+                break
+            prev = {**current.model.params, **fixed}
+            owners, jobs = [], []
+            for eff in todo:
+                for extra in _discrete_splits(eff, fixed):
+                    new = [p for p in Model.parse(eff).params if p not in fixed and p not in extra]
+                    name = model_name([*effects, eff])
+                    owners.append(eff)
+                    jobs.append(
+                        (problem, name, prev, {**fixed, **extra}, tuple(new), fit_settings, seed)
+                    )
+            fits = fit_many(jobs, pool, progress)
+            tried = [(eff, _best_of(eff, owners, fits)) for eff in todo]
+            rounds.append(tried)
+            if within:  # the first round is always fitted: its candidates are reported
+                stop = "within_floor"
+                break
+            eff, best = min(tried, key=lambda t: (heldout_gap(t[1], problem), t[0]))
+            g_new = heldout_gap(best, problem)
+            too_small = g_new > (1.0 - settings.min_shrink) * g_cur
+            if g_cur - g_new < settings.margin * floor or too_small:
+                stop = "no_improvement"
+                break
+            accepted.append((eff, best))
+            effects.append(eff)
+            current = best
+    return {
+        "baseline": base_fit,
+        "rounds": rounds,
+        "accepted": accepted,
+        "final": current,
+        "stop": stop,
+    }

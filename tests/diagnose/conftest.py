@@ -1,0 +1,6 @@
+"""Make the pseudo-data helpers (``diag_synth.py``) importable."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))

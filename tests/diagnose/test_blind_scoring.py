@@ -1,0 +1,87 @@
+"""Scoring of the blind validation: the true effects come from the rig's parameters, the
+confusion matrix and error rates from the diagnoses. Known inputs, hand-counted outputs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bouncelab.gap.blind import (
+    LABELS,
+    deep_merge,
+    load_cases,
+    relative_errors,
+    score_case,
+    summarize,
+    true_effects,
+)
+
+
+def _truth(mu=0.0, e=0.0, feedback=False, s=1.0, harmonics=(), **effects):
+    eff = {
+        "random_vibration_rms_m": 0.0, "drag_n_s_per_m": 0.0,
+        "restitution_slope_s_per_m": 0.0, "sensor_delay_s": 0.0,
+    } | effects  # fmt: skip
+    return {
+        "config": {
+            "body": {"friction_mu": mu, "restitution": e},
+            "drive": {"gamma_scale": s, "harmonics": list(harmonics)},
+            "shaker": {"feedback": feedback, "damping_ratio": 0.05},
+            "effects": eff,
+        },
+        "derived": {"mass_ratio": 0.1245, "f_ratio": 0.4667},
+    }
+
+
+def _diag(selected, params, unexplained=False):
+    return {"selected": selected, "unexplained": unexplained,
+            "final_model": {"params": params}}  # fmt: skip
+
+
+def test_true_effects_from_rig_parameters():
+    lib, out = true_effects(_truth(mu=0.2, feedback=True, sensor_delay_s=0.001))
+    assert lib["friction"] == {"mu": 0.2}
+    assert lib["feedback"] == {"mass_ratio": 0.1245, "f_ratio": 0.4667, "zeta": 0.05}
+    assert out == ["sensor_delay"]
+    lib, out = true_effects(_truth(harmonics=[{"k": 3.0, "a": 0.1}]))
+    assert lib == {"harmonic": {"k": 3.0, "a": 0.1, "psi": 0.0}} and out == []
+
+
+def test_relative_errors():
+    """|0.22 - 0.2| / 0.2 = 0.1; psi wraps: 6.2 against 0.0 is 0.083 rad off, / 2 pi."""
+    err = relative_errors({"mu": 0.2, "psi": 0.0}, {"mu": 0.22, "psi": 6.2})
+    assert err["mu"] == pytest.approx(0.1)
+    assert err["psi"] == pytest.approx((2 * 3.141592653589793 - 6.2) / (2 * 3.141592653589793))
+
+
+def test_summary_counts():
+    """Four cases counted by hand: friction right, gamma_scale confused with friction,
+    a null with a false alarm, an out-of-library case flagged."""
+    scores = {
+        "f": score_case(_diag(["friction"], {"mu": 0.21}), _truth(mu=0.2)),
+        "g": score_case(_diag(["friction"], {"mu": 0.1}), _truth(s=0.9)),
+        "n": score_case(_diag([], {}, unexplained=True), _truth()),
+        "o": score_case(_diag([], {}, unexplained=True), _truth(random_vibration_rms_m=1e-5)),
+    }
+    s = summarize(scores)
+    cm = s["confusion"]
+    i = {lab: k for k, lab in enumerate(LABELS)}
+    assert cm[i["friction"]][i["friction"]] == 1
+    assert cm[i["gamma_scale"]][i["friction"]] == 1
+    assert cm[i["none"]][i["none"]] == 1
+    assert s["top_effect_right"] == 0.5
+    assert (s["n_null"], s["null_false_alarms"]) == (1, 1)
+    assert (s["n_outside"], s["outside_flagged"]) == (1, 1)
+    assert s["param_errors"] == {"friction.mu": [pytest.approx(0.05)]}
+
+
+def test_case_file_merges_over_base():
+    cases = load_cases(Path(__file__).parents[2] / "config" / "blind" / "cases.yaml")
+    names = {c["name"] for c in cases}
+    required = {"null_a", "friction_a", "restitution_a", "harmonic_a", "gamma_scale_a"}
+    required |= {"seed_like", "ool_vibration", "ool_delay", "ool_vdep_restitution"}
+    assert required <= names
+    fr = next(c for c in cases if c["name"] == "friction_a")["rig"]
+    assert fr["body"]["friction_mu"] == 0.15 and fr["body"]["restitution"] == 0.0
+    assert deep_merge({"a": {"b": 1, "c": 2}}, {"a": {"b": 3}}) == {"a": {"b": 3, "c": 2}}

@@ -1,0 +1,115 @@
+"""``bouncelab diagnose``: bad input gives one error line (exit 2), a good run writes the
+JSON of CONTRACTS.md section 6 and leaves the run folder untouched; the result is
+deterministic."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import pytest
+from diag_synth import duration_s, pseudo_flights, write_run
+
+from bouncelab.cli import main
+from bouncelab.gap.diagnose import diagnose_flights
+from bouncelab.gap.fit import FitSettings
+from bouncelab.physics import Model
+from bouncelab.runs import load_run
+from bouncelab.tables import write_table
+
+FAST = FitSettings(popsize=4, maxiter=4, local_evals=4, n_boot=50)
+
+
+def _tree_hash(folder):
+    h = hashlib.sha256()
+    for p in sorted(folder.rglob("*")):
+        if p.is_file():
+            h.update(p.name.encode() + p.read_bytes())
+    return h.hexdigest()
+
+
+@pytest.fixture(scope="module")
+def null_case(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cli")
+    run_dir = write_run(root)
+    flights = pseudo_flights(run_dir, Model.parse("ideal"), seed=3)
+    path = write_table(flights, root / "flights.parquet")
+    return run_dir, path
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["-o", "out.txt"], "must end in .json"),
+        (["-o", "o.json", "--fix-calibration"], "needs --calibration"),
+        (["-o", "o.json", "--baseline", "wobble"], "unknown model effect"),
+        (["-o", "o.json", "--calibration", "missing.json"], "calibration file not found"),
+    ],
+)
+def test_bad_input_one_line(null_case, tmp_path, capsys, extra, message, monkeypatch):
+    run_dir, flights = null_case
+    monkeypatch.chdir(tmp_path)
+    code = main(["diagnose", str(run_dir), "--flights", str(flights), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and err[0].startswith("error:") and message in err[0]
+
+
+def test_output_under_run_folder_refused(null_case, capsys):
+    run_dir, flights = null_case
+    code = main(
+        ["diagnose", str(run_dir), "--flights", str(flights), "-o", str(run_dir / "d.json")]
+    )
+    assert code == 2
+    assert "under the run folder" in capsys.readouterr().err
+
+
+def test_flights_of_another_run_refused(null_case, tmp_path, capsys):
+    run_dir, flights = null_case
+    from bouncelab.tables import read_table
+
+    other = read_table(flights)
+    other["run"] = "someone_else"
+    bad = write_table(other, tmp_path / "other.csv")
+    code = main(["diagnose", str(run_dir), "--flights", str(bad), "-o", str(tmp_path / "d.json")])
+    assert code == 2
+    assert "other.csv" in capsys.readouterr().err
+
+
+def test_cli_writes_contract_json(null_case, tmp_path, monkeypatch):
+    """End to end on pseudo-data of the ideal model (with the small test budget): the null
+    (truth: no effect) selects nothing; the run folder's bytes do not change."""
+    import bouncelab.gap.diagnose as diag
+
+    monkeypatch.setattr(diag, "FitSettings", lambda: FAST)
+    run_dir, flights = null_case
+    before = _tree_hash(run_dir)
+    out = tmp_path / "diag.json"
+    code = main(
+        ["diagnose", str(run_dir), "--flights", str(flights), "-o", str(out), "--workers", "1"]
+    )
+    assert code == 0
+    r = json.loads(out.read_text())
+    assert r["run"] == "pseudo" and r["selected"] == [] and r["unexplained"] is False
+    assert len(r["candidates"]) == 5
+    assert _tree_hash(run_dir) == before
+
+
+def test_deterministic_and_calibration_fixed(null_case):
+    """Same inputs, same dict; with --fix-calibration the friction candidate's mu is the
+    calibration's (0.05), not fitted, and the calibration is reported beside it."""
+    run_dir, flights_path = null_case
+    from bouncelab.tables import read_table
+
+    flights = read_table(flights_path)
+    run = load_run(run_dir)
+    cal = {"mu": 0.05, "restitution": 0.3}
+    kw = {"seed": 0, "fit_settings": FAST, "workers": 1, "progress": False}
+    a = diagnose_flights(run, flights, duration_s(), calibration=cal, fix_calibration=True, **kw)
+    b = diagnose_flights(run, flights, duration_s(), calibration=cal, fix_calibration=True, **kw)
+    assert json.dumps(a) == json.dumps(b)
+    fric = next(c for c in a["candidates"] if c["effect"] == "friction")
+    assert fric["params"]["mu"] == 0.05
+    rest = next(c for c in a["candidates"] if c["effect"] == "restitution")
+    assert rest["params"]["e"] == 0.3
+    assert a["calibration"]["fixed"] is True and a["calibration"]["mu"] == 0.05

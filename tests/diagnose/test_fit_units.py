@@ -1,0 +1,124 @@
+"""Unit checks of the pieces of the fit: held-out design, parameter coding, intervals,
+warnings, calibration input. Each states its reference."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bouncelab.errors import BouncelabError
+from bouncelab.gap.diagnose import read_calibration
+from bouncelab.gap.fit import (
+    K_CHOICES,
+    FitResult,
+    bootstrap_params,
+    decode,
+    encode,
+    fit_warnings,
+    free_params,
+    heldout_mask,
+    intervals,
+)
+from bouncelab.physics import EFFECTS, Model
+
+
+def test_heldout_mask_interleaves():
+    """Every third step held out, the ends fitted: 10 steps -> indices 1, 4, 7."""
+    m = heldout_mask(10, 3)
+    assert np.flatnonzero(m).tolist() == [1, 4, 7]
+    assert not m[0] and not m[-1]
+    with pytest.raises(ValueError):
+        heldout_mask(10, 1)
+
+
+def test_free_params_bounds_and_fixed():
+    """Bounds are those of physics.EFFECTS; a fixed parameter is not fitted; k is discrete."""
+    free = free_params(("friction", "harmonic"), fixed={"mu": 0.29})
+    names = [p.name for p in free]
+    assert names == ["k", "a", "psi"]
+    a = free[1]
+    assert (a.lower, a.upper) == EFFECTS["harmonic"]["a"][1:]
+    assert free[0].choices == K_CHOICES
+
+
+def test_encode_decode_round_trip():
+    """Decoding an encoded dict gives it back (k snapped to the nearest choice)."""
+    free = free_params(("harmonic", "gamma_scale"))
+    params = {"k": 2.1, "a": 0.2, "psi": 1.0, "s": 0.95}
+    back = decode(free, encode(free, params))
+    assert back == {"k": 2.0, "a": 0.2, "psi": 1.0, "s": 0.95}
+
+
+def _fake_fit(xs, gaps, names=("mu",)):
+    """A FitResult on a known cloud of evaluations (no simulation)."""
+    free = free_params(("friction", "gamma_scale"))
+    free = [p for p in free if p.name in names]
+    xs = np.asarray(xs, dtype=float).reshape(len(xs), len(free))
+    gaps = np.asarray(gaps, dtype=float)
+    i = int(np.argmin(gaps[:, ::1].mean(axis=1)))
+    params = dict(zip(names, xs[i], strict=True))
+    model = Model.parse(
+        "+".join(sorted({"mu": "friction", "s": "gamma_scale"}[n] for n in names)), params
+    )
+    return FitResult(model, free, float(gaps[i].mean()), gaps[i], xs, gaps, len(xs), 0.0)
+
+
+class _P:
+    """The attributes of a Problem that the bootstrap uses (equal step weights)."""
+
+    def __init__(self, n):
+        self.fit = np.ones(n, dtype=bool)
+        self.heldout = ~self.fit
+        self.weights = np.ones(n)
+
+
+def test_bootstrap_picks_the_resampled_best():
+    """Cloud of 3 evaluations over 4 steps; evaluation 1 is best on every step, so every
+    resample picks it and the interval collapses to its value (0.2)."""
+    gaps = [[1, 1, 1, 1], [0.1, 0.2, 0.1, 0.3], [0.5, 0.5, 0.5, 0.5]]
+    fit = _fake_fit([0.1, 0.2, 0.3], gaps)
+    boot = bootstrap_params(fit, _P(4), n_boot=50, seed=1)
+    assert np.all(boot[:, 0] == 0.2)
+    assert intervals(fit, boot)["mu"] == [0.2, 0.2]
+
+
+def test_bootstrap_spreads_when_steps_disagree():
+    """Two evaluations, each best on half the steps: resamples pick both, so the 95 %
+    interval spans both values."""
+    gaps = [[0.1, 0.1, 0.9, 0.9], [0.9, 0.9, 0.1, 0.1]]
+    fit = _fake_fit([0.1, 0.3], gaps)
+    boot = bootstrap_params(fit, _P(4), n_boot=400, seed=2)
+    assert intervals(fit, boot)["mu"] == [0.1, 0.3]
+
+
+def test_warnings_on_bound_and_trade_off():
+    """mu at its lower bound 0 is reported; two parameters moving together across
+    bootstrap refits (correlation 1) are reported as trading off."""
+    fit = _fake_fit([[0.0, 1.0], [0.3, 1.1]], [[0.1, 0.1], [0.5, 0.5]], names=("mu", "s"))
+    boot = np.array([[0.0, 1.0], [0.1, 1.05], [0.2, 1.1], [0.3, 1.15]])
+    w = fit_warnings(fit, boot)
+    assert any("mu" in x and "lower bound" in x for x in w)
+    assert any("trade off" in x for x in w)
+    still = np.tile([0.1, 1.0], (4, 1))  # no spread: nothing can trade off
+    assert fit_warnings(fit, still) == [x for x in w if "bound" in x]
+
+
+def test_read_calibration(tmp_path):
+    """A section-4 JSON is read; a missing key, a non-number or bad JSON is one error."""
+    good = tmp_path / "cal.json"
+    good.write_text(json.dumps({"mu": 0.29, "mu_ci": [0.27, 0.31], "restitution": 0.515,
+                                "restitution_ci": [0.5, 0.53], "n_bounces": 12}))  # fmt: skip
+    assert read_calibration(good)["mu"] == 0.29
+    for text, what in [
+        ('{"mu": 0.2}', "restitution"),
+        ('{"mu": "x", "restitution": 0.5}', "mu"),
+        ("not json", "JSON"),
+        ('{"mu": 1.5, "restitution": 0.5}', "outside"),
+    ]:
+        bad = tmp_path / "bad.json"
+        bad.write_text(text)
+        with pytest.raises(BouncelabError, match=what) as exc:
+            read_calibration(bad)
+        assert "bad.json" in str(exc.value)

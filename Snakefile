@@ -24,6 +24,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/runs.smk"
 include: "workflow/rules/models.smk"
 include: "workflow/rules/compare.smk"
+include: "workflow/rules/diagnose.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/report.smk"
 

@@ -89,6 +89,8 @@ def sweep_products(run):
         f"{RES}/runs/{run}/energy.parquet",
     ]
     out += [f"{RES}/runs/{run}/sim/{v}.parquet" for v in VARIANTS]
+    if config["diagnosis"]["enabled"]:
+        out.append(f"{RES}/runs/{run}/diagnosis.json")
     out += [f"{RES}/figures/{run}/{fig}.png" for fig in SWEEP_FIGURES]
     if run in ACCEL_RUNS:
         out.append(f"{RES}/figures/{run}/fig04_accelerometer.png")
@@ -144,6 +146,8 @@ SWEEP_FIGURES = [
     "gap_over_gamma",
     "energy_budget",
 ]
+if config["diagnosis"]["enabled"]:
+    SWEEP_FIGURES.append("fig_gap_diagnosis")
 FIG = f"{RES}/figures"
 DPI = config["figures"]["dpi"]
 

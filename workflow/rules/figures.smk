@@ -166,3 +166,29 @@ rule energy_budget:
         dpi=DPI,
     script:
         "../scripts/fig_energy_budget.py"
+
+
+rule fig_gap_diagnosis:
+    input:
+        f"{RES}/runs/{{run}}/diagnosis.json",
+    output:
+        **figure_output("fig_gap_diagnosis", "Gap diagnosis"),
+    log:
+        f"{RES}/logs/figures/{{run}}/fig_gap_diagnosis.log",
+    params:
+        dpi=DPI,
+    script:
+        "../scripts/fig_gap_diagnosis.py"
+
+
+rule fig_blind_validation:
+    input:
+        f"{RES}/blind/scores.json",
+    output:
+        **figure_output("fig_blind_validation", "Gap diagnosis", run=False),
+    log:
+        f"{RES}/logs/figures/fig_blind_validation.log",
+    params:
+        dpi=DPI,
+    script:
+        "../scripts/fig_blind_validation.py"

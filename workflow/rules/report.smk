@@ -11,6 +11,12 @@ rule report:
             f"{FIG}/fig01_takeoff_line.png",
             f"{FIG}/fig02_bifurcation_ideal.png",
         ],
+        # the blind validation takes long: in the report only when the config asks
+        blind=(
+            [f"{FIG}/fig_blind_validation.png"]
+            if config["diagnosis"]["blind_in_report"]
+            else []
+        ),
         templates=sorted(str(p) for p in Path("report").rglob("*") if p.is_file()),
         config="config/config.yaml",
     output:

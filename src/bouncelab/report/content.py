@@ -38,6 +38,8 @@ FIGURE_TITLES = {
     "fig10_harmonic": "Fig. 10 - the harmonic model",
     "gap_over_gamma": "Gap over Gamma",
     "energy_budget": "Energy budget",
+    "fig_gap_diagnosis": "Gap before and after the diagnosed effects",
+    "fig_blind_validation": "Blind validation of the diagnosis",
 }
 
 SWEEP_FIGURE_ORDER = [
@@ -105,21 +107,14 @@ def fmt(x, digits: int = 4) -> str:
 
 def git_revision(repo: Path) -> str:
     """The checkout's revision (with '+dirty' for uncommitted changes), or 'unknown'."""
+
+    def git(*args: str) -> str:
+        done = subprocess.run(["git", *args], cwd=repo, capture_output=True, text=True, check=True)
+        return done.stdout.strip()
+
     try:
-        rev = subprocess.run(
-            ["git", "rev-parse", "--short=12", "HEAD"],
-            cwd=repo,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=repo,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
+        rev = git("rev-parse", "--short=12", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return rev + ("+dirty" if dirty else "")
@@ -214,48 +209,154 @@ def calibration_rows(results: Path, drops: list[str]) -> list[list[str]]:
     return rows
 
 
-def diagnosis_blocks(results: Path, run: str) -> list[dict]:
-    """The gap diagnosis of a sweep run, or a note saying it has not been computed."""
+def _params_text(params: dict, ci: dict | None = None) -> str:
+    """``mu = 0.29 [0.27, 0.31], e = 0.5`` from a parameter dict and optional intervals."""
+    parts = []
+    for k, v in sorted((params or {}).items()):
+        if not isinstance(v, (int, float)):
+            continue
+        text = f"{k} = {v:.4g}"
+        lohi = (ci or {}).get(k)
+        if lohi and None not in lohi:
+            text += f" [{lohi[0]:.4g}, {lohi[1]:.4g}]"
+        parts.append(text)
+    return ", ".join(parts) or "-"
+
+
+def diagnosis_blocks(results: Path, run: str, captions: Path) -> list[dict]:
+    """The gap diagnosis of a sweep run: figure, verdict, candidates, accepted effects,
+    regions; or a note saying it has not been computed."""
     diag = _read_json(results / "runs" / run / "diagnosis.json")
     if not diag:
         return [
             {
                 "type": "note",
-                "text": "Gap diagnosis: not computed for this run (the diagnosis stage is not "
-                "part of this build).",
+                "text": "Gap diagnosis: not computed for this run (diagnosis.enabled is false "
+                "in config/config.yaml).",
             }
         ]
-    rows = [
-        [
-            s["effect"],
-            json.dumps(s.get("params", {}), sort_keys=True),
-            fmt(s["gap"]),
-            fmt(s["shrink"]),
-        ]
-        for s in diag.get("steps", [])
-    ]
-    blocks = [
+    blocks = []
+    fig = figure_block(
+        results / "figures" / run / "fig_gap_diagnosis.png", "fig_gap_diagnosis", captions, run
+    )
+    if fig:
+        blocks.append(fig)
+    base = diag["baseline"]
+    floor = diag.get("noise_floor")
+    verdict = (
+        "What remains is clearly above the noise floor: none of the candidate effects "
+        "explains it (unexplained)."
+        if diag.get("unexplained")
+        else "What remains is within the noise floor (explained)."
+    )
+    reasons = diag.get("unexplained_reasons") or []
+    blocks.append(
         {
             "type": "text",
             "text": (
-                f"Baseline {diag['baseline']['model']}: gap {fmt(diag['baseline']['gap'])} "
-                f"(noise floor {fmt(diag['noise_floor'])}). Selected: "
+                f"Baseline model {base['model']}: gap {fmt(base['gap'])} rad against a noise "
+                f"floor of {fmt(floor)} rad. Effects accepted, in order: "
                 f"{', '.join(diag.get('selected') or []) or 'none'}; final gap "
-                f"{fmt(diag.get('final_gap'))}; "
-                + ("unexplained." if diag.get("unexplained") else "explained.")
+                f"{fmt(diag.get('final_gap'))} rad. {verdict}"
+                + (f" Why: {'; '.join(map(str, reasons))}." if reasons else "")
             ),
         }
+    )
+    cal = diag.get("calibration") or {}
+    cal_text = (
+        _params_text(
+            {"mu": cal.get("mu"), "e": cal.get("restitution")},
+            {"mu": cal.get("mu_ci"), "e": cal.get("restitution_ci")},
+        )
+        if cal
+        else "-"
+    )
+    rows = [
+        [
+            s["effect"],
+            _params_text(s.get("params", {}), s.get("params_ci")),
+            fmt(s["gap"]),
+            fmt(s["shrink"]),
+            "; ".join(map(str, s.get("warnings") or [])) or "-",
+        ]
+        for s in diag.get("steps", [])
     ]
     if rows:
         blocks.append(
             {
                 "type": "table",
-                "caption": "Effects accepted, in order",
-                "header": ["effect", "parameters", "gap", "shrink"],
+                "caption": f"Effects accepted, in order (drop-test calibration: {cal_text})",
+                "header": [
+                    "effect",
+                    "fitted parameters [interval]",
+                    "gap (rad)",
+                    "shrink",
+                    "warnings",
+                ],
                 "rows": rows,
             }
         )
+    cand = [
+        [c["effect"], _params_text(c.get("params", {})), fmt(c["gap"]), fmt(c["shrink"])]
+        for c in diag.get("candidates", [])
+    ]
+    if cand:
+        blocks.append(
+            {
+                "type": "table",
+                "caption": "Each candidate effect added alone to the baseline and refitted "
+                "(gap on held-out Gamma steps)",
+                "header": ["effect", "fitted parameters", "gap (rad)", "shrink"],
+                "rows": cand,
+            }
+        )
+    regions = [
+        [
+            f"{fmt(r['gamma_min'])} - {fmt(r['gamma_max'])}",
+            fmt(r["gap"]),
+            r.get("explained_by") or "-",
+        ]
+        for r in diag.get("regions", [])
+    ]
+    if regions:
+        blocks.append(
+            {
+                "type": "table",
+                "caption": "Where the gap lies: regions over Gamma",
+                "header": ["Gamma", "gap (rad)", "explained by"],
+                "rows": regions,
+            }
+        )
     return blocks
+
+
+def blind_validation_blocks(results: Path, captions: Path) -> list[dict]:
+    """The blind validation of the diagnosis, when the workflow computed it."""
+    png = results / "figures" / "fig_blind_validation.png"
+    scores = _read_json(results / "blind" / "scores.json")
+    if not png.is_file() or not scores:
+        return [
+            {
+                "type": "note",
+                "text": "The blind validation was not run in this build: run "
+                "`snakemake --cores 2 --config diagnosis='{blind_in_report: true}'`, or "
+                "`python -m bouncelab.gap.blind --out results/blind`; docs/diagnosis.md "
+                "records its last measured results.",
+            }
+        ]
+    blocks = [figure_block(png, "fig_blind_validation", captions)]
+    summary = scores.get("summary") or {}
+    rows = [[str(k), fmt(v) if isinstance(v, float) else str(v)] for k, v in summary.items()]
+    if rows:
+        blocks.append(
+            {
+                "type": "table",
+                "caption": "Blind validation: summary",
+                "header": ["measure", "value"],
+                "rows": rows,
+            }
+        )
+    return [b for b in blocks if b]
 
 
 def build_context(
@@ -381,8 +482,16 @@ def build_context(
             if b:
                 blocks.append(b)
         blocks.append({"type": "heading", "id": f"diag-{run}", "text": "Gap diagnosis"})
-        blocks.extend(diagnosis_blocks(results, run))
+        blocks.extend(diagnosis_blocks(results, run, captions))
         sections.append({"id": f"run-{run}", "title": f"Sweep run {run}", "blocks": blocks})
+
+    sections.append(
+        {
+            "id": "validation",
+            "title": "Validation of the gap diagnosis on withheld effects",
+            "blocks": blind_validation_blocks(results, captions),
+        }
+    )
 
     energy_rows = [
         [r["quantity"], fmt(r["seed_j"]), fmt(r["value_j"]), r["assumption"]]

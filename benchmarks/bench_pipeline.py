@@ -1,0 +1,97 @@
+"""Benchmark of the workflow: a full run over the shipped data, a no-op rerun, a dropped-in run.
+
+Goals (issue 5): `snakemake --cores 2` over the shipped data in at most 3 minutes after
+installation (numba caches warm, as after the first run of the tests or the pipeline);
+a no-op rerun in at most 5 s; a dropped-in sweep re-runs only its own jobs and the report.
+
+Runs in a scratch copy of the project (raw/ is copied, never written). Prints and
+writes benchmarks/results/pipeline.json.
+
+    python benchmarks/bench_pipeline.py
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+PARTS = ("Snakefile", "workflow", "config", "report", "profiles", "raw")
+
+
+def copy_project(dest: Path) -> None:
+    for part in PARTS:
+        src = REPO / part
+        if src.is_dir():
+            shutil.copytree(src, dest / part, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            shutil.copy2(src, dest / part)
+
+
+def timed_snakemake(work: Path, *args: str) -> tuple[float, str]:
+    t0 = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, "-m", "snakemake", "--cores", "2", *args],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    dt = time.perf_counter() - t0
+    if proc.returncode != 0:
+        sys.exit(f"snakemake {' '.join(args)} failed:\n{proc.stderr[-3000:]}")
+    return dt, proc.stdout + proc.stderr
+
+
+def job_counts(output: str) -> dict[str, int]:
+    """Jobs per rule from snakemake's 'Job stats' table."""
+    m = re.search(r"Job stats:\n.*?\n-+\s+-+\n(.*?)\n\S*total", output, re.S)
+    counts = {}
+    for line in (m.group(1) if m else "").splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[1].isdigit():
+            counts[parts[0]] = int(parts[1])
+    return counts
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp) / "project"
+        work.mkdir()
+        copy_project(work)
+        full_s, out = timed_snakemake(work)
+        full_jobs = sum(job_counts(out).values())
+        noop_s, out = timed_snakemake(work)
+        assert "Nothing to be done" in out, out[-2000:]
+        shutil.copytree(work / "raw" / "accel_g2-4", work / "raw" / "dropped_in")
+        drop_s, out = timed_snakemake(work)
+        wild = re.findall(r"^    wildcards: (.*)$", out, re.M)
+        others = [w for w in wild if "run=dropped_in" not in w]
+    result = {
+        "full_run_s": round(full_s, 1),
+        "full_run_jobs": full_jobs,
+        "noop_rerun_s": round(noop_s, 2),
+        "dropped_in_run_s": round(drop_s, 1),
+        "dropped_in_foreign_jobs": others,
+        "goals": {"full_run_s": 180, "noop_rerun_s": 5},
+        "meets_goals": full_s <= 180 and noop_s <= 5 and not others,
+        "cpu_count": os.cpu_count(),
+        "python": platform.python_version(),
+        "load_average_1min": round(os.getloadavg()[0], 2),
+    }
+    print(json.dumps(result, indent=1))
+    out_path = REPO / "benchmarks" / "results" / "pipeline.json"
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(json.dumps(result, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -14,6 +14,8 @@ rule compare:
         ),
     log:
         f"{RES}/logs/compare/{{run}}.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         variants=VARIANTS,
     script:
@@ -28,6 +30,8 @@ rule energy:
         f"{RES}/runs/{{run}}/energy.parquet",
     log:
         f"{RES}/logs/energy/{{run}}.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         run_dir=lambda wc: str(RAW / wc.run),
         variants=VARIANTS,

@@ -18,6 +18,8 @@ rule diagnose:
         f"{RES}/logs/diagnose/{{run}}.log",
     benchmark:
         f"{RES}/benchmarks/diagnose/{{run}}.tsv"
+    conda:
+        "../envs/bouncelab.yaml"
     threads: 2
     resources:
         mem_mb=3000,
@@ -47,6 +49,8 @@ rule blind_validation:
         f"{RES}/logs/blind_validation.log",
     benchmark:
         f"{RES}/benchmarks/blind_validation.tsv"
+    conda:
+        "../envs/bouncelab.yaml"
     threads: 2
     params:
         out=lambda wildcards, output: str(Path(output.scores).parent),

@@ -8,6 +8,8 @@ rule fig01_takeoff_line:
         **figure_output("fig01_takeoff_line", "Model", run=False),
     log:
         f"{RES}/logs/figures/fig01_takeoff_line.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:
@@ -21,6 +23,8 @@ rule fig02_bifurcation_ideal:
         **figure_output("fig02_bifurcation_ideal", "Model", run=False),
     log:
         f"{RES}/logs/figures/fig02_bifurcation_ideal.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         grid=config["figures"]["bifurcation_gamma"],
         dpi=DPI,
@@ -35,6 +39,8 @@ rule fig03_rig:
         **figure_output("fig03_rig", "Rig and runs"),
     log:
         f"{RES}/logs/figures/{{run}}/fig03_rig.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         run_dir=lambda wc: str(RAW / wc.run),
         dpi=DPI,
@@ -49,6 +55,8 @@ rule fig04_accelerometer:
         **figure_output("fig04_accelerometer", "Measurement"),
     log:
         f"{RES}/logs/figures/{{run}}/fig04_accelerometer.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         run_dir=lambda wc: str(RAW / wc.run),
         dpi=DPI,
@@ -63,6 +71,8 @@ rule fig05_continuity:
         **figure_output("fig05_continuity", "Measurement"),
     log:
         f"{RES}/logs/figures/{{run}}/fig05_continuity.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         run_dir=lambda wc: str(RAW / wc.run),
         dpi=DPI,
@@ -78,6 +88,8 @@ rule fig06_drop_test:
         **figure_output("fig06_drop_test", "Measurement"),
     log:
         f"{RES}/logs/figures/{{run}}/fig06_drop_test.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         run_dir=lambda wc: str(RAW / wc.run),
         dpi=DPI,
@@ -93,6 +105,8 @@ rule fig07_bifurcation:
         **figure_output("fig07_bifurcation", "Data and models"),
     log:
         f"{RES}/logs/figures/{{run}}/fig07_bifurcation.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:
@@ -106,6 +120,8 @@ rule fig08_return_maps:
         **figure_output("fig08_return_maps", "Data and models"),
     log:
         f"{RES}/logs/figures/{{run}}/fig08_return_maps.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         gammas=config["figures"]["return_map_gammas"],
         dpi=DPI,
@@ -122,6 +138,8 @@ rule fig09_friction:
         **figure_output("fig09_friction", "Data and models"),
     log:
         f"{RES}/logs/figures/{{run}}/fig09_friction.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:
@@ -136,6 +154,8 @@ rule fig10_harmonic:
         **figure_output("fig10_harmonic", "Data and models"),
     log:
         f"{RES}/logs/figures/{{run}}/fig10_harmonic.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:
@@ -149,6 +169,8 @@ rule gap_over_gamma:
         **figure_output("gap_over_gamma", "Gap over Gamma"),
     log:
         f"{RES}/logs/figures/{{run}}/gap_over_gamma.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:
@@ -162,6 +184,8 @@ rule energy_budget:
         **figure_output("energy_budget", "Energy"),
     log:
         f"{RES}/logs/figures/{{run}}/energy_budget.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:
@@ -175,6 +199,8 @@ rule fig_gap_diagnosis:
         **figure_output("fig_gap_diagnosis", "Gap diagnosis"),
     log:
         f"{RES}/logs/figures/{{run}}/fig_gap_diagnosis.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:
@@ -188,6 +214,8 @@ rule fig_blind_validation:
         **figure_output("fig_blind_validation", "Gap diagnosis", run=False),
     log:
         f"{RES}/logs/figures/fig_blind_validation.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         dpi=DPI,
     script:

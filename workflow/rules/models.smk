@@ -12,6 +12,8 @@ rule simulate:
         f"{RES}/logs/simulate/{{run}}/{{variant}}.log",
     benchmark:
         f"{RES}/benchmarks/simulate/{{run}}/{{variant}}.tsv"
+    conda:
+        "../envs/bouncelab.yaml"
     threads: 2
     resources:
         mem_mb=2000,
@@ -32,6 +34,8 @@ rule bifurcation_ideal:
         f"{RES}/logs/bifurcation_ideal.log",
     benchmark:
         f"{RES}/benchmarks/bifurcation_ideal.tsv"
+    conda:
+        "../envs/bouncelab.yaml"
     threads: 2
     params:
         grid=config["figures"]["bifurcation_gamma"],

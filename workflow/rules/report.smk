@@ -24,6 +24,8 @@ rule report:
         pdf=f"{RES}/report/report.pdf",
     log:
         f"{RES}/logs/report.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         raw_dir=str(RAW),
         # the results folder, from the output path: <results>/report/report.html

@@ -8,6 +8,8 @@ checkpoint check_run:
         f"{RES}/runs/{{run}}/check.json",
     log:
         f"{RES}/logs/check_run/{{run}}.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         run_dir=lambda wc: str(RAW / wc.run),
     script:
@@ -24,6 +26,8 @@ rule extract:
         f"{RES}/logs/extract/{{run}}.log",
     benchmark:
         f"{RES}/benchmarks/extract/{{run}}.tsv"
+    conda:
+        "../envs/bouncelab.yaml"
     threads: 1
     resources:
         mem_mb=2000,
@@ -41,6 +45,8 @@ rule calibrate:
         f"{RES}/runs/{{run}}/calibration.json",
     log:
         f"{RES}/logs/calibrate/{{run}}.log",
+    conda:
+        "../envs/bouncelab.yaml"
     params:
         run_dir=lambda wc: str(RAW / wc.run),
     shell:

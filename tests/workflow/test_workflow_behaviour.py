@@ -6,6 +6,7 @@ import re
 import shutil
 import subprocess
 import sys
+import zipfile
 
 from .conftest import REPO, copy_project, snakemake, tree_hashes
 
@@ -30,6 +31,16 @@ def executed_jobs(output: str) -> list[tuple[str, str]]:
 def test_rerun_with_nothing_changed_does_nothing(workflow_dir):
     out = snakemake(workflow_dir, "-n")
     assert "Nothing to be done" in out.stdout + out.stderr
+
+
+def test_snakemake_report_packs_the_marked_outputs(workflow_dir, tmp_path):
+    # every output marked report() (figures with captions, gap tables, diagnoses)
+    zip_path = tmp_path / "snakemake-report.zip"
+    snakemake(workflow_dir, "--report", str(zip_path))
+    with zipfile.ZipFile(zip_path) as z:
+        names = z.namelist()
+    assert any(n.endswith("report.html") for n in names)
+    assert sum(n.endswith(".png") for n in names) >= 20
 
 
 def test_two_runs_give_identical_simulations_and_figures(workflow_dir):

@@ -83,7 +83,7 @@ def claims_table(results: Path, sweeps: list[str], drops: list[str], checks: dic
                 f"data gaps in Gamma ({run})",
                 "1.75-1.95 and 4.55-4.85",
                 ", ".join(f"{a:g}-{b:g}" for a, b in gaps) or "none",
-                "recorded as gaps, not errors",
+                "kept as gaps, not errors" if gaps else "-",
             ]
         )
         fig10 = _read_json(results / "figures" / run / "fig10_harmonic.json")

@@ -2,6 +2,8 @@
 
 import math
 
+import numpy as np
+
 from bouncelab.physics import Model, simulate_from, simulate_grid
 
 TWO_PI = 2.0 * math.pi
@@ -42,3 +44,14 @@ def restitution_period_doubled(gamma, e, skip):
     m = Model.parse("restitution", {"e": e})
     t = simulate_from(m, gamma, ph, gamma * math.sin(ph), v, 4, n_skip=skip)["T"].to_numpy()
     return len(t) < 4 or abs(t[0] - t[1]) > 1e-7
+
+
+def body_np(s, x0, v0, mu):
+    """Body height (nondimensional) at times ``s`` after leaving ``x0`` with velocity ``v0``
+    under Coulomb friction ``mu``: two parabolas joined at the apex (brute-force reference)."""
+    gu, gd = 1 + mu, 1 - mu
+    if v0 > 0:
+        sa = v0 / gu
+        xa = x0 + v0 * sa / 2
+        return np.where(s < sa, x0 + v0 * s - gu * s * s / 2, xa - gd * (s - sa) ** 2 / 2)
+    return x0 + v0 * s - gd * s * s / 2

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from physics_helpers import body_np
 
 from bouncelab.physics import Model
 from bouncelab.physics import kernels as K
@@ -52,15 +53,6 @@ def fly_general(phi0, x0, v0, g, mu):
         phi0, x0, v0, 1e6, g, 1 + mu, 1 - mu, EMPTY, EMPTY, EMPTY, False, 0.0, 0.0, 0.0,
         0.0, 0.0, 0.0, 1 + mu + g, m3, m3, g, HTOL, 200_000, *q,
     )  # fmt: skip
-
-
-def body_np(s, x0, v0, mu):
-    gu, gd = 1 + mu, 1 - mu
-    if v0 > 0:
-        sa = v0 / gu
-        xa = x0 + v0 * sa / 2
-        return np.where(s < sa, x0 + v0 * s - gu * s * s / 2, xa - gd * (s - sa) ** 2 / 2)
-    return x0 + v0 * s - gd * s * s / 2
 
 
 case = st.fixed_dictionaries(

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from physics_helpers import body_np
 
 from bouncelab.physics import kernels as K
 
@@ -37,15 +38,6 @@ def plate_np(phi, g, hk, ha, th, arm, lam, om, f2):
             y = (c1 * np.exp(r1 * tau) + c2 * np.exp(r2 * tau)).real
         p = p + y
     return p
-
-
-def body_np(s, x0, v0, mu):
-    gu, gd = 1 + mu, 1 - mu
-    if v0 > 0:
-        sa = v0 / gu
-        xa = x0 + v0 * sa / 2
-        return np.where(s < sa, x0 + v0 * s - gu * s * s / 2, xa - gd * (s - sa) ** 2 / 2)
-    return x0 + v0 * s - gd * s * s / 2
 
 
 case = st.fixed_dictionaries(

@@ -14,7 +14,9 @@ rule simulate:
         f"{RES}/benchmarks/simulate/{{run}}/{{variant}}.tsv"
     conda:
         "../envs/bouncelab.yaml"
-    threads: 2
+    # one core: a job is mostly start-up and table building, so two jobs side by side
+    # finish sooner than one job on two cores (numba's prange spreads what is left)
+    threads: 1
     resources:
         mem_mb=2000,
     params:

@@ -29,6 +29,7 @@ import yaml
 
 from bouncelab.errors import BouncelabError
 from bouncelab.physics import EFFECT_ORDER
+from bouncelab.yamlfile import read_yaml
 
 #: Default case file, relative to the repository root.
 DEFAULT_CASES = Path("config/blind/cases.yaml")
@@ -54,12 +55,7 @@ def deep_merge(base: dict, over: dict) -> dict:
 def load_cases(path: str | Path = DEFAULT_CASES) -> list[dict]:
     """Cases ``[{"name", "rig"}]`` with each ``rig`` merged over the file's ``base``."""
     path = Path(path)
-    if not path.is_file():
-        raise BouncelabError(path, "blind case file not found")
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise BouncelabError(path, f"YAML syntax error: {exc}") from None
+    doc = read_yaml(path, "blind case file")
     if not isinstance(doc, dict) or not isinstance(doc.get("cases"), list):
         raise BouncelabError(path, "blind case file needs a 'cases' list")
     base = doc.get("base") or {}

@@ -18,10 +18,10 @@ from typing import Any
 
 import jsonschema
 import numpy as np
-import yaml
 
 from bouncelab.errors import BouncelabError
 from bouncelab.rig.kernels import zeta_from_restitution
+from bouncelab.yamlfile import read_yaml
 
 # largest rest step as a fraction of the contact oscillator's period over pi:
 # omega_n * h <= 0.75 keeps velocity Verlet stable (limit 2) and quasi-static riding accurate
@@ -77,13 +77,7 @@ def load_rig_config(path: str | Path) -> dict:
     schema violation or an inconsistent protocol.
     """
     path = Path(path)
-    if not path.is_file():
-        raise BouncelabError(path, "rig config file not found")
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise BouncelabError(path, f"YAML syntax error: {exc}") from None
-    return parse_rig_config(raw, path)
+    return parse_rig_config(read_yaml(path, "rig config file"), path)
 
 
 def check_semantics(cfg: dict, path: str | Path) -> None:

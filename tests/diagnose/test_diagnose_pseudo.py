@@ -77,3 +77,15 @@ def test_null_selects_nothing(run_dir):
     assert r["selected"] == []
     assert r["unexplained"] is False
     assert r["final_gap"] <= 3 * r["noise_floor"]
+
+
+def test_combination_recovered_by_joint_refit(run_dir):
+    """Truth: friction and restitution together (mu = 0.25, e = 0.45). Restitution alone
+    absorbs part of the friction; the later round refits both jointly (every parameter
+    searched globally), so both are selected and both parameters land within 15 %."""
+    r = _diagnose(run_dir, Model.parse("friction+restitution", {"mu": 0.25, "e": 0.45}))
+    assert sorted(r["selected"]) == ["friction", "restitution"]
+    params = r["final_model"]["params"]
+    assert abs(params["mu"] - 0.25) / 0.25 < 0.15
+    assert abs(params["e"] - 0.45) / 0.45 < 0.15
+    assert r["unexplained"] is False

@@ -73,6 +73,9 @@ class _P:
         self.heldout = ~self.fit
         self.weights = np.ones(n)
 
+    def clipped(self, gaps):
+        return np.asarray(gaps)  # no floors here: nothing to clip
+
 
 def test_bootstrap_picks_the_resampled_best():
     """Cloud of 3 evaluations over 4 steps; evaluation 1 is best on every step, so every
@@ -122,3 +125,22 @@ def test_read_calibration(tmp_path):
         with pytest.raises(BouncelabError, match=what) as exc:
             read_calibration(bad)
         assert "bad.json" in str(exc.value)
+
+
+def test_member_offsets_alternate_around_the_model():
+    """Member 0 is the model itself; the others step out by MEMBER_SPREAD on both sides."""
+    from bouncelab.gap.fit import MEMBER_SPREAD, member_offsets
+
+    np.testing.assert_array_equal(
+        member_offsets(5) / MEMBER_SPREAD, np.array([0.0, 1.0, -1.0, 2.0, -2.0])
+    )
+
+
+def test_clipped_caps_each_step_at_gap_cap_floors():
+    """A step counts at most GAP_CAP of its floors: 9 rad against a 0.03 rad floor counts
+    0.3 rad; gaps under the cap are untouched."""
+    from bouncelab.gap.fit import GAP_CAP, Problem
+
+    p = Problem.__new__(Problem)
+    p.floor = np.array([0.03, 1.0])
+    np.testing.assert_allclose(p.clipped(np.array([9.0, 2.0])), [GAP_CAP * 0.03, 2.0])

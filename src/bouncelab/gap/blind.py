@@ -40,6 +40,10 @@ GOALS = {"top_effect_right": 0.9, "param_rel_error": 0.15, "null_false_alarms": 
 #: Labels of the confusion matrix: the library effects and "none".
 LABELS = (*EFFECT_ORDER, "none")
 
+#: Case sets: ``development`` cases were seen while the diagnosis was designed (not
+#: independent evidence); ``validation`` cases were written after it was frozen.
+CASE_SETS = ("validation", "development")
+
 
 def deep_merge(base: dict, over: dict) -> dict:
     """``base`` with ``over`` merged in, recursively for mappings (lists are replaced)."""
@@ -63,7 +67,16 @@ def load_cases(path: str | Path = DEFAULT_CASES) -> list[dict]:
     for case in doc["cases"]:
         if not isinstance(case, dict) or "name" not in case:
             raise BouncelabError(path, f"case {case!r} needs a name")
-        out.append({"name": str(case["name"]), "rig": deep_merge(base, case.get("rig") or {})})
+        kind = str(case.get("set", "validation"))
+        if kind not in CASE_SETS:
+            raise BouncelabError(path, f"case {case['name']!r}: set must be one of {CASE_SETS}")
+        out.append(
+            {
+                "name": str(case["name"]),
+                "set": kind,
+                "rig": deep_merge(base, case.get("rig") or {}),
+            }
+        )
     return out
 
 
@@ -279,7 +292,7 @@ def run_blind(
             diag_path.write_text(json.dumps(diagnosis, indent=1) + "\n")
         t2 = time.perf_counter()
         _flights, truth_params = read_truth(truth_path)  # only now, after the diagnosis
-        scores[name] = score_case(diagnosis, truth_params)
+        scores[name] = {**score_case(diagnosis, truth_params), "set": case.get("set", "validation")}
         timings[name] = {"rig_s": t1 - t0, "diagnose_s": t2 - t1}
         sc = scores[name]
         log(
@@ -287,7 +300,12 @@ def run_blind(
             f"{sc['selected'] or ['none']}, unexplained {sc['unexplained']}, "
             f"errors {sc['param_errors']} ({t2 - t0:.0f} s)"
         )
-    result = {"cases": scores, "summary": summarize(scores), "timings": timings}
+    by_set = {
+        k: summarize({n: sc for n, sc in scores.items() if sc["set"] == k})
+        for k in CASE_SETS
+        if any(sc["set"] == k for sc in scores.values())
+    }
+    result = {"cases": scores, "summary": summarize(scores), "by_set": by_set, "timings": timings}
     (out_dir / "scores.json").write_text(json.dumps(result, indent=1, sort_keys=True) + "\n")
     return result
 

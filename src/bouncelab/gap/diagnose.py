@@ -22,6 +22,7 @@ from bouncelab.errors import BouncelabError
 from bouncelab.gap.features import compare_features
 from bouncelab.gap.fit import (
     K_CHOICES,
+    MEMBER_SPREAD,
     FitResult,
     FitSettings,
     Problem,
@@ -202,7 +203,7 @@ def diagnose_flights(
         flights,
         duration_s,
         seed=seed,
-        n_starts=fit_settings.n_starts,
+        n_members=fit_settings.n_members,
         heldout_every=fit_settings.heldout_every,
     )
     if problem.heldout.sum() < 1 or problem.fit.sum() < 2:
@@ -365,7 +366,8 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
         "optimizer": (
             f"differential_evolution(popsize={fit_settings.popsize}, "
             f"maxiter={fit_settings.maxiter}, tol={fit_settings.tol}, polish=False, "
-            f"seed={seed}) on the new effect's parameters, then Nelder-Mead "
+            f"seed={seed}) on every parameter of the model (the current best in the "
+            f"initial population), then Nelder-Mead "
             f"({fit_settings.local_evals} evaluations per parameter) on all"
         ),
         "heldout_every": fit_settings.heldout_every,
@@ -373,7 +375,8 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
         "n_fit_steps": int(problem.fit.sum()),
         "n_heldout_steps": int(problem.heldout.sum()),
         "seed": int(seed),
-        "n_starts": int(problem.n_starts),
+        "n_members": int(problem.n_members),
+        "member_spread": MEMBER_SPREAD,
         "min_T": problem.min_T,
         "k_choices": list(K_CHOICES),
         "bounds": {p: list(v[1:]) for e in EFFECTS.values() for p, v in e.items()},

@@ -220,15 +220,7 @@ def simulate_protocol(
     for takeoffs within the first ``settle_cycles`` cycles of their step).
     """
     model = _check_model(model)
-    g = _gamma_array(gammas)
-    cyc = np.atleast_1d(np.asarray(cycles))
-    if cyc.shape != g.shape or not np.all(np.isfinite(cyc.astype(float))):
-        raise BouncelabError(None, "cycles must give one whole number per Gamma step")
-    if np.any(cyc < 1) or np.any(np.asarray(cyc, dtype=float) % 1 != 0):
-        raise BouncelabError(None, "cycles must be whole numbers >= 1")
-    if settle_cycles < 0:
-        raise BouncelabError(None, "settle_cycles must be >= 0")
-    step_end = np.cumsum(cyc.astype(np.int64))
+    g, step_end = _protocol_steps(gammas, cycles, settle_cycles)
     starts = _start_phases(phi_start, n_starts, seed)
     ns = starts.size
     g_st = np.tile(g, (ns, 1))
@@ -247,6 +239,76 @@ def simulate_protocol(
         max_rec *= 4  # chatter made more flights than guessed: rerun with room
     columns = (*FLIGHT_COLUMNS, "step", "t_takeoff", "settled")
     return _frame(out, columns, _written(rows, max_rec))
+
+
+def _protocol_steps(gammas, cycles, settle_cycles) -> tuple[np.ndarray, np.ndarray]:
+    """Checked protocol: stated Gammas (S,) and the cycle at which each step ends (S,)."""
+    g = _gamma_array(gammas)
+    cyc = np.atleast_1d(np.asarray(cycles))
+    if cyc.shape != g.shape or not np.all(np.isfinite(cyc.astype(float))):
+        raise BouncelabError(None, "cycles must give one whole number per Gamma step")
+    if np.any(cyc < 1) or np.any(np.asarray(cyc, dtype=float) % 1 != 0):
+        raise BouncelabError(None, "cycles must be whole numbers >= 1")
+    if settle_cycles < 0:
+        raise BouncelabError(None, "settle_cycles must be >= 0")
+    return g, np.cumsum(cyc.astype(np.int64))
+
+
+def protocol_flight_times(
+    model: Model,
+    gammas,
+    cycles,
+    settle_cycles: int = 10,
+    gamma_factors=(1.0,),
+    chatter_eps: float = CHATTER_EPS,
+) -> dict[str, np.ndarray]:
+    """The lab protocol for an ensemble whose members' true Gamma is scaled, as arrays.
+
+    The inner loop of the gap fits (:mod:`bouncelab.gap.fit`): the flights of
+    :func:`simulate_protocol` from phase 0, one member per entry of ``gamma_factors``
+    (member ``j`` runs with true Gamma ``gamma_factors[j] * model.gamma_true(gammas)``),
+    without building a DataFrame. All members run in one parallel kernel call.
+    ``chatter_eps`` (rad) ends a chatter sequence once its predicted flight is shorter
+    (default :data:`CHATTER_EPS`); a caller that cannot resolve such flights may raise
+    it to save the kernel the long geometric tails.
+
+    Returns
+    -------
+    dict of 1-D arrays of one length, in time order within each member: ``member``
+    (int64), ``step`` (int64, index into ``gammas``), ``T`` (rad), ``settled`` (bool).
+    """
+    model = _check_model(model)
+    g, step_end = _protocol_steps(gammas, cycles, settle_cycles)
+    factors = np.atleast_1d(np.asarray(gamma_factors, dtype=float))
+    ns = factors.size
+    g_st = np.tile(g, (ns, 1))
+    g_tr = model.gamma_true(g_st) * factors[:, None]
+    hk, ha, hp = model.harmonic_arrays()
+    par = kernel_params(model)
+    par[K.P_EPS] = float(chatter_eps)
+    # room for chatter at once: np.empty only maps pages, so unwritten room costs nothing,
+    # while a rerun after a full buffer costs a whole simulation
+    max_rec = int(32 * step_end[-1] + 64)
+    while True:
+        out = np.empty((K.NCOL, ns * max_rec))
+        rows, status = K.run_many(
+            par, hk, ha, hp, g_tr, g_st, step_end, True, np.zeros(ns),
+            np.zeros(ns), np.zeros(ns), 0, max_rec, int(settle_cycles),
+            np.arange(ns, dtype=float), out,
+        )  # fmt: skip
+        if not np.any(status == K.ST_FULL):
+            break
+        max_rec *= 4
+    keep = _written(rows, max_rec)
+    cols = {
+        "member": (K.C_START, np.int64),
+        "step": (K.C_STEP, np.int64),
+        "T": (K.C_T, np.float64),
+    }
+    res = {k: (out[c] if keep is None else out[c][keep]).astype(t) for k, (c, t) in cols.items()}
+    settled = out[K.C_SETTLED] if keep is None else out[K.C_SETTLED][keep]
+    res["settled"] = settled > 0.5
+    return res
 
 
 def simulate_from(

@@ -345,36 +345,49 @@ def blind_validation_blocks(results: Path, captions: Path) -> list[dict]:
             }
         ]
     blocks = [figure_block(png, "fig_blind_validation", captions)]
-    summ = scores.get("summary") or {}
+    # one column per case set: the validation set (written after the design was frozen)
+    # is the evidence; the development set was seen while designing (docs/diagnosis.md)
+    sets = scores.get("by_set") or {"all cases": scores.get("summary") or {}}
+    names = [k for k in ("validation", "development") if k in sets] or list(sets)
+
+    def row(label, value, goal):
+        return [label, *(value(sets[k]) for k in names), goal]
+
     rows = [
-        ["single-effect cases with the top effect right", fmt(summ.get("top_effect_right")), "0.9"],
-        [
-            "false alarms on null cases",
-            f"{summ.get('null_false_alarms')} of {summ.get('n_null')}",
-            "0",
-        ],
-        [
-            "out-of-library cases flagged unexplained",
-            f"{summ.get('outside_flagged')} of {summ.get('n_outside')}",
-            "all",
-        ],
-        ["parameters within 15 %", fmt(summ.get("param_within_goal")), "1"],
-    ]
-    for name, errs in sorted((summ.get("param_errors") or {}).items()):
-        rows.append([f"relative error of {name}", ", ".join(fmt(e, 2) for e in errs), "< 0.15"])
-    for name, c in sorted((summ.get("combinations") or {}).items()):
-        rows.append(
-            [
-                f"combination {name}: {' + '.join(c.get('true', []))}",
-                "selected " + (" + ".join(c.get("selected", [])) or "nothing"),
-                "the same set",
-            ]
-        )
+        row("single-effect cases with the top effect right",
+            lambda m: f"{fmt(m.get('top_effect_right'))} of {m.get('n_single')}", "0.9"),
+        row("false alarms on null cases",
+            lambda m: f"{m.get('null_false_alarms')} of {m.get('n_null')}", "0"),
+        row("out-of-library cases flagged unexplained",
+            lambda m: f"{m.get('outside_flagged')} of {m.get('n_outside')}", "all"),
+        row("parameters within 15 %", lambda m: fmt(m.get("param_within_goal")), "1"),
+    ]  # fmt: skip
+
+    def errors(m, name):
+        return ", ".join(fmt(e, 2) for e in (m.get("param_errors") or {}).get(name, [])) or "-"
+
+    params = sorted({p for k in names for p in (sets[k].get("param_errors") or {})})
+    for name in params:
+        rows.append(row(f"relative error of {name}", lambda m, n=name: errors(m, n), "< 0.15"))
+    for k in names:
+        for name, c in sorted((sets[k].get("combinations") or {}).items()):
+            rows.append(
+                [
+                    f"combination {name} ({k}): {' + '.join(c.get('true', []))}",
+                    *(
+                        ("selected " + (" + ".join(c.get("selected", [])) or "nothing"))
+                        if j == k
+                        else ""
+                        for j in names
+                    ),
+                    "the same set",
+                ]
+            )
     blocks.append(
         {
             "type": "table",
-            "caption": "Blind validation against its goals",
-            "header": ["measure", "value", "goal"],
+            "caption": "Blind validation against its goals, per case set",
+            "header": ["measure", *(f"{k} set" for k in names), "goal"],
             "rows": rows,
         }
     )

@@ -63,6 +63,20 @@ def kernel_rates(
     return rates
 
 
+def evals_per_flight(model: Model, gammas: np.ndarray, n_flights: int) -> float:
+    """Mean plate evaluations of the landing search per flight (column ``C_NSTEPS``)."""
+    n = gammas.size
+    hk, ha, hp = model.harmonic_arrays()
+    out = np.empty((K.NCOL, n * n_flights))
+    rows, _ = K.run_many(
+        kernel_params(model), hk, ha, hp, model.gamma_true(gammas)[:, None], gammas[:, None],
+        np.array([_NO_END]), True, np.zeros(n), np.zeros(n), np.zeros(n), 0, n_flights, 0,
+        np.zeros(n), out,
+    )  # fmt: skip
+    keep = (np.arange(n_flights)[None, :] < rows[:, None]).ravel()
+    return float(out[K.C_NSTEPS][keep].mean())
+
+
 def kernel_rate(model: Model, gammas: np.ndarray, n_flights: int, repeat: int = 3) -> float:
     """Best of :func:`kernel_rates` (flights per second)."""
     return max(kernel_rates(model, gammas, n_flights, repeat))
@@ -103,13 +117,15 @@ def main() -> int:
     res["compile_s"] = compile_seconds()
     print(f"cold compile (empty cache): {res['compile_s']:.1f} s")
 
-    rates, medians, general = {}, {}, {}
+    rates, medians, general, evals = {}, {}, {}, {}
     for name, params in MODELS.items():
         m = Model.parse(name, params)
         kernel_rate(m, gammas[:4], 10, repeat=1)  # load from cache / compile
         r = kernel_rates(m, gammas, n_f, repeat=args.repeat)
         rates[name], medians[name] = max(r), float(np.median(r))
+        evals[name] = evals_per_flight(m, gammas[:: max(1, n_g // 500)], 200)
         line = f"{name:42s} best {rates[name] / 1e6:6.2f}  median {medians[name] / 1e6:6.2f} M/s"
+        line += f"  ({evals[name]:.2f} evals/flight)"
         if not m.harmonic_arrays()[0].size and not m.params.get("mass_ratio", 0.0):
             general[name] = max(kernel_rates(m, gammas, n_f, repeat=2, fast=False))
             line += f"   (general solver {general[name] / 1e6:5.2f})"
@@ -117,6 +133,7 @@ def main() -> int:
     res["flights_per_s"] = rates
     res["flights_per_s_median"] = medians
     res["flights_per_s_general_solver"] = general
+    res["landing_evals_per_flight"] = evals
 
     # plain-Python reference on a few Gammas, the kernel on the same workload
     ref_g = np.linspace(1.1, 8.0, 8)

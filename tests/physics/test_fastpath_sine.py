@@ -51,7 +51,7 @@ def fly_general(phi0, x0, v0, g, mu):
     m3 = max(g, 1e-300)
     return K.fly(
         phi0, x0, v0, 1e6, g, 1 + mu, 1 - mu, EMPTY, EMPTY, EMPTY, False, 0.0, 0.0, 0.0,
-        0.0, 0.0, 0.0, 1 + mu + g, m3, m3, g, HTOL, 200_000, *q,
+        0.0, 0.0, 0.0, 1 + mu + g, m3, m3, g, HTOL, 200_000, *q, 0.0,
     )  # fmt: skip
 
 

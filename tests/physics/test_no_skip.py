@@ -19,6 +19,13 @@ from bouncelab.physics import kernels as K
 HTOL = 1e-13
 
 
+def body_velocity_np(s, v0, mu):
+    """Body velocity ``s`` after a takeoff with ``v0`` (two parabolas joined at the apex)."""
+    if v0 > 0 and s < v0 / (1 + mu):
+        return v0 - (1 + mu) * s
+    return min(v0, 0.0) - (1 - mu) * (s - max(v0 / (1 + mu), 0.0))
+
+
 def plate_np(phi, g, hk, ha, th, arm, lam, om, f2):
     """Plate position (numpy twin of kernels.plate_eval, written independently)."""
     p = g * np.sin(phi)
@@ -61,6 +68,11 @@ case = st.fixed_dictionaries(
             ),
         ),
         "on_line": st.booleans(),
+        # a predicted flight time: only a trial point, it must never change the landing;
+        # absolute (0: none), or relative to the landing found without a guess (as the
+        # previous flight's time is on a periodic orbit)
+        "guess": st.one_of(st.just(0.0), st.floats(0.0, 30.0)),
+        "guess_rel": st.one_of(st.none(), st.floats(-0.05, 0.05)),
     }
 )
 
@@ -94,11 +106,24 @@ def check_case(c):
     if m3 == 0.0:
         m3 = m4 = 1e-300  # still plate: the Taylor bounds are not needed
     x0, v0 = p, p1 + c["w"]
-    s, landed, nit, *_ = K.fly(
-        phi0, x0, v0, 1e6, g, gu, gd, hk, ha, th, arm, ay, av, 0.0, lam, om, f2,
-        m2, m3, m4, g * (1 + a0) + b0, HTOL, 200_000, p, p1, p2, p3,
-    )  # fmt: skip
+
+    def fly(guess):
+        return K.fly(
+            phi0, x0, v0, 1e6, g, gu, gd, hk, ha, th, arm, ay, av, 0.0, lam, om, f2,
+            m2, m3, m4, g * (1 + a0) + b0, HTOL, 200_000, p, p1, p2, p3, guess,
+        )  # fmt: skip
+
+    s0 = fly(0.0)[0]
+    guess = c["guess"] if c["guess_rel"] is None else s0 * (1.0 + c["guess_rel"])
+    s, landed, nit, _, q1, *_ = fly(guess)
     assert landed and nit < 200_000
+    # the guess changes how the landing is found, not which: equal to the landing's
+    # conditioning.  Either run may stop at the first point within HTOL of the plate or
+    # on the root itself (plus rounding of h), a distance of about HTOL / |h'|; for
+    # micro-flights (|h'| ~ 1e-6) |h'| itself changes that much over it, hence 2x
+    slope = abs(body_velocity_np(s, v0, mu) - q1)
+    cond = 2.0 * (HTOL + 1e-15 * (1 + abs(x0) + abs(v0) * s + m2)) / max(slope, 1e-300)
+    assert abs(s - s0) <= 1e-12 * s0 + cond, (c, s0, s, slope)
     # dense brute force up to the found landing (and a little beyond, to see it is real)
     n = 20_000
     ss = np.linspace(0.0, s, n + 1)[1:]
@@ -132,7 +157,7 @@ def test_takeoff_exactly_on_the_line_grows_like_cube():
     p, p1, p2, p3 = K.plate_eval(phi0, g, e, e, e, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     s, landed, *_ = K.fly(
         phi0, p, p1, 1e6, g, 1.0, 1.0, e, e, e, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-        1 + g, g, g, g, HTOL, 200_000, p, p1, p2, p3,
+        1 + g, g, g, g, HTOL, 200_000, p, p1, p2, p3, 0.0,
     )  # fmt: skip
     assert landed and abs(s / (2 * math.pi) - 0.56758) < 5e-6
 
@@ -148,7 +173,7 @@ def test_grazing_landing_is_found():
         p, p1, p2, p3 = K.plate_eval(phi0, g, e, e, e, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         return K.fly(
             phi0, p, p1 + w, 1e6, g, 1.0, 1.0, e, e, e, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-            1 + g, g, g, g, HTOL, 200_000, p, p1, p2, p3,
+            1 + g, g, g, g, HTOL, 200_000, p, p1, p2, p3, 0.0,
         )[0]  # fmt: skip
 
     # flight time jumps where a graze appears; on both sides brute force must agree

@@ -7,6 +7,7 @@ import pytest
 
 from bouncelab.errors import BouncelabError
 from bouncelab.physics import Model, simulate_grid, simulate_protocol
+from bouncelab.physics import kernels as K
 
 TWO_PI = 2 * math.pi
 
@@ -47,6 +48,34 @@ def test_steps_settle_and_carry_state():
     inside = df["t_takeoff"] + df["T"] < ends[2]  # landed before Gamma changed again
     locked = df[(df["step"] == 2) & df["settled"] & inside]["T"].to_numpy()[-5:]
     assert np.allclose(locked, TWO_PI, atol=1e-6)
+
+
+def test_batch_order_does_not_matter():
+    # run_many hands trajectories to threads in a spread order (a permutation); each
+    # depends on its own inputs only, so a Gamma alone gives the flights it gives in a batch
+    m = Model.parse("harmonic+feedback")
+    gam = np.linspace(1.5, 7.5, 13)
+    batch = simulate_grid(m, gam, 50)
+    for g in gam[[0, 5, 12]]:
+        alone = simulate_grid(m, [g], 50)["T"].to_numpy()
+        assert np.array_equal(alone, batch[batch["gamma"] == g]["T"].to_numpy())
+    for n in range(1, 300):
+        order = (np.arange(n) * K.spread_stride(n)) % n
+        assert np.array_equal(np.sort(order), np.arange(n))
+
+
+@pytest.mark.parametrize(("name", "gamma"), [("ideal", 4.0), ("ideal", 6.45), ("harmonic", 2.5)])
+def test_step_to_the_same_gamma_changes_nothing(name, gamma):
+    # a flight in the air at a step boundary flies on (its landing search restarts there,
+    # also from above the plate's range at 6.45, where T = 4 pi): the flights equal those
+    # of one step of the same length to rounding (periodic orbits, no amplification)
+    m = Model.parse(name)
+    two = simulate_protocol(m, [gamma, gamma], [40, 40], settle_cycles=0)
+    one = simulate_protocol(m, [gamma], [80], settle_cycles=0)
+    start, end = two["t_takeoff"].to_numpy(), (two["t_takeoff"] + two["T"]).to_numpy()
+    assert np.any((start < 40 * TWO_PI) & (end > 40 * TWO_PI))  # one crosses the boundary
+    assert len(two) == len(one)
+    assert np.allclose(two["T"], one["T"], rtol=0, atol=1e-12)
 
 
 def test_history_matters_under_the_protocol():

@@ -8,6 +8,10 @@ Model parameters travel in one float64 vector ``par`` (indices ``P_*``) plus thr
 arrays for the harmonics (``hk``, ``ha``, ``hpsi``, shape ``(n_harmonics,)``).  Output
 rows are written into a float64 matrix ``out[column, row]`` with the column indices
 ``C_*``.
+
+Every kernel is compiled with ``cache=True`` and ``error_model="numpy"``: a division by
+zero would give inf or nan instead of raising (none occurs for valid parameters), which
+spares every division in the inner loops its zero test and branch.
 """
 
 from __future__ import annotations
@@ -51,9 +55,11 @@ C_SETTLED = 12  # 1.0 unless the takeoff is within settle cycles of its step sta
 C_X0 = 13  # body height at takeoff
 C_V0 = 14  # body velocity at takeoff (lab frame)
 C_FLIGHT = 15  # flight index in the trajectory (skipped transients included)
-C_NSTEPS = 16  # solver iterations spent on this flight's landing (diagnostic)
+C_NSTEPS = 16  # plate evaluations spent on this flight's landing search (diagnostic)
 C_TAIL = 17  # duration (rad) of the summed chatter tail after this flight's landing, else 0
 NCOL = 18
+
+HIST = 4  # recent flights remembered for the guess of the next flight's duration
 
 # trajectory status codes
 ST_DONE = 0  # recorded what was asked
@@ -62,7 +68,25 @@ ST_END = 2  # the protocol's last step ended
 ST_FULL = 3  # the output buffer is full before the protocol ended
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def mod_two_pi(x):
+    """``x mod 2 pi`` for ``x >= 0``, equal to ``x % TWO_PI`` (an exact fmod) bit for bit.
+
+    Cheaper than the library ``fmod`` for the usual few cycles: ``TWO_PI`` has 50
+    significant bits, so ``n * TWO_PI`` is exact for ``n <= 7`` and so is the difference
+    (the exact remainder is representable).  A quotient that rounded up to ``n`` gives a
+    tiny negative remainder, corrected by adding ``TWO_PI`` back (exact as well).
+    """
+    n = np.floor(x / TWO_PI)
+    if n > 7.0:
+        return x % TWO_PI  # (Python semantics: fmod for x >= 0)
+    r = x - n * TWO_PI
+    if r < 0.0:
+        r += TWO_PI
+    return r
+
+
+@njit(cache=True, error_model="numpy")
 def safe_step(f, f1, m):
     """Largest ``t`` with ``f + f1 t - m t^2 / 2 > 0`` on ``[0, t)``, given ``f >= 0``, ``m > 0``.
 
@@ -80,7 +104,7 @@ def safe_step(f, f1, m):
     return 2.0 * f / (sq - f1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def arm_eval(tau, y0, v0, lam, om, f2):
     """Armature deflection ``y`` and its first three phase derivatives ``tau`` after a reference.
 
@@ -112,7 +136,17 @@ def arm_eval(tau, y0, v0, lam, om, f2):
     return y, y1, y2, y3
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def armature_kick(p, p1, p2, p3, dv, lam, f2):
+    """Plate state just after the armature's velocity jumps by ``dv`` (an impact's recoil).
+
+    The deflection is continuous; ``y'' = -2 lam y' - f2 y`` and its derivative carry
+    the jump to the second and third derivatives.
+    """
+    return p, p1 + dv, p2 - 2.0 * lam * dv, p3 + (4.0 * lam * lam - f2) * dv
+
+
+@njit(cache=True, error_model="numpy")
 def arm_bounds(y0, v0, f, lam):
     """Bounds on ``|y|, |y''|, |y'''|, |y''''|`` for all later phases (armature energy never grows).
 
@@ -128,7 +162,7 @@ def arm_bounds(y0, v0, f, lam):
     return b0, b2, b3, b4
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2):
     """Plate position and first three derivatives at phase ``phi``.
 
@@ -163,7 +197,7 @@ def plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2):
     return p, p1, p2, p3
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def body_eval(s, x0, v0, gu, gd):
     """Body height, velocity and acceleration ``s`` after leaving ``(x0, v0)``.
 
@@ -180,7 +214,7 @@ def body_eval(s, x0, v0, gu, gd):
     return x0 + v0 * s - 0.5 * gd * s * s, v0 - gd * s, -gd
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def path_length(s, x0, v0, gu, gd):
     """Distance travelled by the body in its first ``s`` of flight (friction loss = mu * path)."""
     xs = body_eval(s, x0, v0, gu, gd)[0]
@@ -193,34 +227,129 @@ def path_length(s, x0, v0, gu, gd):
     return x0 - xs
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def body_at(s, x0, v0, sa, xa, va, gu, gd):
+    """Body height, velocity and acceleration ``s`` after takeoff, given its apex.
+
+    ``sa``, ``xa``, ``va``: time, height and velocity at the apex (for ``v0 <= 0``: 0,
+    ``x0``, ``v0``); effective gravity ``gu`` before it, ``gd`` after it (friction).
+    """
+    if s < sa:
+        return x0 + v0 * s - 0.5 * gu * s * s, v0 - gu * s, -gu
+    ts = s - sa
+    return xa + va * ts - 0.5 * gd * ts * ts, va - gd * ts, -gd
+
+
+@njit(cache=True, error_model="numpy")
+def taylor_step(h, h1, h2, h3, m2, m3, m4):
+    """Certified step of the landing walk from a point with ``h >= 0`` (bounds 1-3 of fly).
+
+    ``h, h1, h2, h3``: the relative height and its first three derivatives (phase units);
+    ``m2 >= sup(-h'')``, ``m3 >= sup|h'''|``, ``m4 >= sup|h''''|``.  Returns the largest
+    ``t`` for which one of the lower bounds of :func:`fly` is positive on ``(0, t)``.
+    """
+    t = safe_step(h, h1, m2)
+    if h1 >= 0.0 and h2 >= 0.0 and h1 < 1e-2:
+        # near a takeoff with small relative velocity the quadratic bound stalls; the
+        # cubic bound holds while any one non-negative Taylor term beats m3 t^3/6
+        t3 = 3.0 * h2 / m3
+        if h1 > 0.0:
+            t3 = max(t3, math.sqrt(6.0 * h1 / m3))
+        if h > 0.0:
+            t3 = max(t3, (6.0 * h / m3) ** (1.0 / 3.0))
+        if t3 > t:
+            t = t3
+        if h3 > 0.0:
+            t4 = max(4.0 * h3 / m4, math.sqrt(12.0 * h2 / m4))
+            if h1 > 0.0:
+                t4 = max(t4, (24.0 * h1 / m4) ** (1.0 / 3.0))
+            if h > 0.0:
+                t4 = max(t4, math.sqrt(math.sqrt(24.0 * h / m4)))
+            if t4 > t:
+                t = t4
+    return t
+
+
+@njit(cache=True, error_model="numpy")
+def trial_bounds(hx, hx1, m2):
+    """Where the backward bound from a trial point ``x`` certifies ``h > 0`` (bound 5 of fly).
+
+    ``h(x - d) >= hx - hx1 d - m2 d^2 / 2 > 0`` for ``lo < d < hi``.  Returns
+    ``(hi, lo)``; ``hi <= 0`` when the bound certifies nothing (``h`` rising into or below
+    the plate at ``x``, or too deep below it).  ``lo < 0`` when ``hx > 0``.
+    """
+    b = -hx1
+    disc = b * b + 2.0 * m2 * hx
+    if disc <= 0.0 or (hx <= 0.0 and b <= 0.0):
+        return -1.0, 0.0
+    sq = math.sqrt(disc)
+    if b >= 0.0:
+        return (b + sq) / m2, -2.0 * hx / (b + sq)
+    return 2.0 * hx / (sq - b), (b - sq) / m2
+
+
+@njit(cache=True, error_model="numpy")
+def next_trial(s, h, h1, h2, reach, guess, pending, ct, m2):
+    """Where :func:`fly` places its next trial point (phase offset; -1: none).
+
+    At the takeoff the guess, if beyond the walk's reach; later, while descending, the
+    root of the quadratic Taylor model at ``s`` (``h, h1, h2``: relative height and
+    derivatives there), but only where bound 5 is expected to hold at once with the
+    slope the model predicts there (near a tangency it would not, and the walk is
+    cheaper), and before a pending trial point's certified region (from ``ct`` on).
+    """
+    if s == 0.0 and guess > reach:
+        return guess
+    if h1 >= 0.0:
+        return -1.0
+    disc = h1 * h1 - 2.0 * h * h2
+    d = 2.0 * h / (math.sqrt(disc) - h1) if disc > 0.0 else h / (-h1)
+    slope = h1 + h2 * d  # h' expected at the trial point
+    if reach < s + d < reach - 2.0 * slope / m2 and (not pending or s + d < ct):
+        return s + d
+    return -1.0
+
+
+@njit(cache=True, error_model="numpy")
 def fly(
     phi0, x0, v0, smax, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om, f2,
-    m2, m3, m4, pmax, htol, maxit, q0, q1, q2, q3,
+    m2, m3, m4, pmax, htol, maxit, q0, q1, q2, q3, guess,
 ):  # fmt: skip
     """First contact after leaving ``(x0, v0)`` at phase ``phi0``.
 
     ``q0..q3``: the plate's position and first three derivatives at ``phi0`` (known to
-    the caller from the takeoff).  Returns ``(s, landed, n_iter, p, p1, p2, p3)``: the
-    flight time, whether it landed (False: reached ``smax``), the iterations, and the
-    plate position and derivatives at the contact (zeros when not landed).
+    the caller from the takeoff); ``guess`` (rad, ``<= 0``: none): a predicted flight
+    time (:func:`predict_flight`), used only to place a trial point.  Returns
+    ``(s, landed, n_eval, p, p1, p2, p3)``: the flight time, whether it landed (False:
+    reached ``smax``), the plate evaluations, and the plate position and derivatives at
+    the contact (zeros when not landed).
 
     ``h(s) = x_body(s) - chi_p(phi0 + s)`` is the relative height.  No-skip argument:
-    every move from ``s`` to ``s + t`` is certified by a lower bound of ``h`` that stays
-    positive on ``[s, s + t)``:
+    the walk keeps a certified reach ``R`` (``h > 0`` on ``[0, R)``); every extension is
+    proven by a lower bound of ``h``:
 
-    - ``h + h' t - m2 t^2/2`` with ``m2 >= sup(-h'')`` (gravity + plate acceleration bound);
-    - ``h + h' t + h'' t^2/2 - m3 t^3/6`` and the quartic analogue with ``m3 >= sup|p'''|``,
-      ``m4 >= sup|p''''|``, used when the lower derivatives are >= 0 (a takeoff on or near
-      the takeoff line, where ``h`` grows like ``s^3``); the only jump of ``h''`` is upward
-      (at the apex friction flips sign), so these Taylor bounds stay valid;
-    - ``x_body(s + t) > pmax >= max chi_p`` while the body is above the plate's range.
+    1. ``h + h' t - m2 t^2/2`` with ``m2 >= sup(-h'')`` (gravity + plate acceleration bound);
+    2. ``h + h' t + h'' t^2/2 - m3 t^3/6`` and 3. the quartic analogue with
+       ``m3 >= sup|p'''|``, ``m4 >= sup|p''''|``, used when the lower derivatives are >= 0
+       (a takeoff on or near the takeoff line, where ``h`` grows like ``s^3``); the only
+       jump of ``h''`` is upward (at the apex friction flips sign), so these Taylor bounds
+       stay valid;
+    4. ``x_body > pmax >= max chi_p``: the body's height is a concave curve, so once the
+       reach is inside the span where it is above the plate's range, the whole span is
+       clear;
+    5. backward from a trial point ``x`` (the guess, or the predicted root of the
+       quadratic Taylor model while descending): ``h(x - d) >= h(x) - h'(x) d - m2 d^2/2``
+       is positive for ``lo < d < hi`` (:func:`trial_bounds`).  Once ``R >= x - hi``,
+       ``h > 0`` on ``[0, x - max(lo, 0))``: with ``h(x) > htol`` the walk moves to ``x``;
+       otherwise the first contact lies in ``[x - lo, x]``, where ``h`` is strictly
+       decreasing (``lo <= |h'(x)|/m2``, so ``h' <= h'(x) + m2 d < 0`` there), and
+       Newton steps from ``x`` kept inside that bracket find it.
 
     The first ``s`` where ``h <= htol`` while ``h' <= 0`` is the contact (a graze counts
-    when it comes within ``htol``).  Once ``h <= 1e-6`` with ``h' < -0.1`` (a clearly
-    transversal approach) Newton steps finish: each overshoots the certified step by at
-    most ``m2 h^2 / (2 |h'|^3) < 1e-9 m2``, far too short for a contact to hide in
-    (its depth would be below ``m2 * 1e-18``).  If the flight reaches ``smax`` (a
+    when it comes within ``htol``).  Once ``h <= 1e-6`` with ``h' < -0.1`` at a walk point
+    (a clearly transversal approach) Newton steps finish: each overshoots the certified
+    step by at most ``m2 h^2 / (2 |h'|^3) < 1e-9 m2``, far too short for a contact to hide
+    in (its depth would be below ``m2 * 1e-18``).  If the flight reaches ``smax`` (a
     protocol step boundary) it stops there.
     """
     # the body's apex, once (friction: two parabolas joined there)
@@ -238,18 +367,25 @@ def fly(
         s_desc = sa + (va + math.sqrt(va * va + 2.0 * gd * (xa - pmax))) / gd
     s = 0.0
     p, p1, p2, p3 = q0, q1, q2, q3
-    for it in range(maxit):
-        if it > 0:
+    nev = 0
+    # the pending trial point: phase offset xt (< 0: none), h and h' there, the plate
+    # there, and where its backward bound starts (ct) and ends (the bracket's low end)
+    xt = -1.0
+    ht = 0.0
+    ht1 = 0.0
+    ct = 0.0
+    dlo = 0.0
+    pt0 = 0.0
+    pt1 = 0.0
+    pt2 = 0.0
+    pt3 = 0.0
+    fresh = True  # p..p3 hold the plate at s
+    for _ in range(maxit):
+        if not fresh:
             p, p1, p2, p3 = plate_eval(phi0 + s, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
-        if s < sa:
-            xb = x0 + v0 * s - 0.5 * gu * s * s
-            vb = v0 - gu * s
-            ab = -gu
-        else:
-            ts = s - sa
-            xb = xa + va * ts - 0.5 * gd * ts * ts
-            vb = va - gd * ts
-            ab = -gd
+            nev += 1
+        fresh = False
+        xb, vb, ab = body_at(s, x0, v0, sa, xa, va, gu, gd)
         h = xb - p
         h1 = vb - p1
         h2 = ab - p2
@@ -265,62 +401,112 @@ def fly(
                 h2 = 0.0
         elif h <= 1e-6 and h1 < -0.1:
             # transversal approach: Newton finish (see docstring)
-            for _ in range(4):
-                dt = h / (-h1)
-                s += dt
-                p, p1, p2, p3 = plate_eval(phi0 + s, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
-                if s < sa:
-                    h = x0 + v0 * s - 0.5 * gu * s * s - p
-                    h1 = v0 - gu * s - p1
-                else:
-                    ts = s - sa
-                    h = xa + va * ts - 0.5 * gd * ts * ts - p
-                    h1 = va - gd * ts - p1
-                if abs(h) <= htol or abs(dt) < 1e-15 * (1.0 + s):
-                    break
-            return s, True, it, p, p1, p2, p3
+            return fly_newton(s, h, h1, p, p1, p2, p3, -math.inf, math.inf, 4, phi0, x0, v0,
+                              sa, xa, va, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om,
+                              f2, htol, nev)  # fmt: skip
         # contact: within htol of the plate and not moving away from it (a body just
         # above the plate but rising, e.g. after a tiny rebound, is still in flight)
         if h <= htol and h1 <= 0.0 and (s > 0.0 or h1 < 0.0 or h < -htol):
-            if h1 < 0.0 and h > 0.0:
-                dt = h / (-h1)
-                if dt < 1e-7:
-                    s += dt
-                    # plate state carried along by Taylor (dt^3 terms are < 1e-21)
-                    p += dt * (p1 + 0.5 * dt * p2)
-                    p1 += dt * (p2 + 0.5 * dt * p3)
-                    p2 += dt * p3
-            return s, True, it, p, p1, p2, p3
-        hh = max(h, 0.0)
-        t = safe_step(hh, h1, m2)
-        if h1 >= 0.0 and h2 >= 0.0 and h1 < 1e-2:
-            # near a takeoff with small relative velocity the quadratic bound stalls; the
-            # cubic bound holds while any one non-negative Taylor term beats m3 t^3/6
-            t3 = 3.0 * h2 / m3
-            if h1 > 0.0:
-                t3 = max(t3, math.sqrt(6.0 * h1 / m3))
-            if hh > 0.0:
-                t3 = max(t3, (6.0 * hh / m3) ** (1.0 / 3.0))
-            if t3 > t:
-                t = t3
-            h3 = -p3
-            if h3 > 0.0:
-                t4 = max(4.0 * h3 / m4, math.sqrt(12.0 * h2 / m4))
-                if h1 > 0.0:
-                    t4 = max(t4, (24.0 * h1 / m4) ** (1.0 / 3.0))
-                if hh > 0.0:
-                    t4 = max(t4, math.sqrt(math.sqrt(24.0 * hh / m4)))
-                if t4 > t:
-                    t = t4
-        if xb > pmax and s_desc - s > t:
-            t = s_desc - s  # above the plate's whole range until then
+            return contact_polish(s, h, h1, p, p1, p2, p3, nev)
+        t = taylor_step(max(h, 0.0), h1, h2, -p3, m2, m3, m4)
+        if s_desc - s > t and (xb > pmax or body_at(s + t, x0, v0, sa, xa, va, gu, gd)[0] > pmax):
+            t = s_desc - s  # above the plate's whole range until then (bound 4)
         if t <= 1e-14 * (1.0 + s):
-            return s, True, it, p, p1, p2, p3  # stalled on a tangency: contact within rounding
-        if s + t >= smax:
-            return smax, False, it, 0.0, 0.0, 0.0, 0.0  # (plate not evaluated at smax)
-        s += t
+            return s, True, nev, p, p1, p2, p3  # stalled on a tangency: contact within rounding
+        reach = s + t
+        # a trial point where the landing is expected (bound 5)
+        x = next_trial(s, h, h1, h2, reach, guess, xt >= 0.0, ct, m2)
+        if 0.0 < x < smax:
+            qx0, qx1, qx2, qx3 = plate_eval(phi0 + x, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+            nev += 1
+            bx, bx1, _ = body_at(x, x0, v0, sa, xa, va, gu, gd)
+            hi, lo = trial_bounds(bx - qx0, bx1 - qx1, m2)
+            if hi > 0.0:
+                xt = x
+                ht = bx - qx0
+                ht1 = bx1 - qx1
+                ct = x - hi
+                dlo = x - max(lo, 0.0)
+                pt0, pt1, pt2, pt3 = qx0, qx1, qx2, qx3
+        if xt >= 0.0 and reach >= ct:
+            # the walk has met the trial point's certified neighbourhood
+            if ht > htol or (ht > 0.0 and ht1 > 0.0):
+                # clear up to the trial point (just above the plate but rising there is
+                # no contact): the walk goes on from it
+                s = xt
+                p, p1, p2, p3 = pt0, pt1, pt2, pt3
+                fresh = True
+                xt = -1.0
+                continue
+            if ht > 0.0:
+                return contact_polish(xt, ht, ht1, pt0, pt1, pt2, pt3, nev)
+            return fly_newton(xt, ht, ht1, pt0, pt1, pt2, pt3, dlo, xt, 60, phi0, x0, v0, sa,
+                              xa, va, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om, f2,
+                              htol, nev)  # fmt: skip
+        if reach >= smax:
+            return smax, False, nev, 0.0, 0.0, 0.0, 0.0  # (plate not evaluated at smax)
+        s = reach
     p, p1, p2, p3 = plate_eval(phi0 + s, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
-    return s, True, maxit, p, p1, p2, p3
+    return s, True, nev + 1, p, p1, p2, p3
+
+
+@njit(cache=True, error_model="numpy")
+def contact_polish(s, h, h1, p, p1, p2, p3, nev):
+    """Contact at ``s`` (``h`` within ``htol``): one Newton step of at most 1e-7 onto the root.
+
+    Only from above the plate (``h > 0``, descending); the plate state follows by Taylor
+    (dropped terms below 1e-21).  Returns the tuple of :func:`fly`.
+    """
+    if h1 < 0.0 and h > 0.0:
+        dt = h / (-h1)
+        if dt < 1e-7:
+            return taylor_move(s, dt, p, p1, p2, p3, nev)
+    return s, True, nev, p, p1, p2, p3
+
+
+@njit(cache=True, error_model="numpy")
+def taylor_move(s, dt, p, p1, p2, p3, nev):
+    """Move the contact by a tiny ``dt``, the plate state by Taylor; the tuple of :func:`fly`."""
+    p += dt * (p1 + 0.5 * dt * p2)
+    p1 += dt * (p2 + 0.5 * dt * p3)
+    p2 += dt * p3
+    return s + dt, True, nev, p, p1, p2, p3
+
+
+@njit(cache=True, error_model="numpy")
+def fly_newton(
+    s, h, h1, p, p1, p2, p3, lo, hi, nmax, phi0, x0, v0, sa, xa, va, g, gu, gd, hk, ha, th,
+    arm, ay, av, aref, lam, om, f2, htol, nev,
+):  # fmt: skip
+    """Newton steps onto the contact from ``s`` (``h``, ``h'`` and the plate known there).
+
+    ``(lo, hi)``: a bracket of the root (a step that would leave it is replaced by
+    bisection; infinite for the walk's finish).  Once ``|h| <= htol`` a last Newton step
+    is taken by Taylor (no evaluation, dropped terms below 1e-21); a step below rounding
+    or ``nmax`` steps also end it.  Returns the tuple of :func:`fly`.
+    """
+    for _ in range(nmax):
+        if h1 >= 0.0:
+            break  # (not inside a bracket of a decreasing h; a safety net)
+        dt = h / (-h1)
+        if abs(h) <= htol and abs(dt) < 1e-7:
+            return taylor_move(s, dt, p, p1, p2, p3, nev)  # (either side of the root)
+        sn = s + dt
+        if not (lo < sn < hi) and hi - lo < math.inf:
+            sn = 0.5 * (lo + hi)
+        if abs(sn - s) < 1e-15 * (1.0 + s):
+            break
+        s = sn
+        p, p1, p2, p3 = plate_eval(phi0 + s, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+        nev += 1
+        xb, vb, _ = body_at(s, x0, v0, sa, xa, va, gu, gd)
+        h = xb - p
+        h1 = vb - p1
+        if h > 0.0:
+            lo = s
+        else:
+            hi = s
+    return s, True, nev, p, p1, p2, p3
 
 
 # --- fast path: the pure sine plate -------------------------------------------------
@@ -339,6 +525,10 @@ def fly(
 #   method.  The tangent at a point with ``h' < 0`` lies above ``h``, so its root is a
 #   point with ``h <= 0``: the first trial point of the bracket.
 #
+# Across intervals, while the body is above the plate's range (``x_body > G``), the walk
+# jumps to where it comes down through ``G`` (bound 4 of ``fly``): a high flight costs no
+# evaluations on the way up and over the top.
+#
 # The edges are placed ``SINE_EDGE`` rad early so that a takeoff exactly on the takeoff
 # line (``h'' = 0`` at ``s = 0`` up to rounding) starts inside its convex interval.  In
 # that sliver the wrong-signed curvature is at most ``G SINE_EDGE``, which moves any bound
@@ -347,7 +537,7 @@ def fly(
 SINE_EDGE = 1e-10
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sine_alpha(g, c):
     """Phase ``asin(c / g)`` where ``g sin(phi) = c`` on the rising side; ``-1`` if ``g <= c``."""
     if g <= c:
@@ -355,7 +545,7 @@ def sine_alpha(g, c):
     return math.asin(c / g)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sine_region(phi, al):
     """Curvature interval of ``h'' = g sin(phi) - c`` holding ``phi``: ``(convex, end phase)``.
 
@@ -367,7 +557,7 @@ def sine_region(phi, al):
     if al < 0.0:
         return False, math.inf
     a = al - SINE_EDGE
-    n = math.floor((phi - a) / TWO_PI)
+    n = np.floor((phi - a) / TWO_PI)
     r = phi - a - n * TWO_PI  # in [0, 2 pi): phase past the convex interval's start
     w = math.pi - 2.0 * al  # convex width
     tol = 1e-13 * (1.0 + abs(phi))
@@ -378,7 +568,7 @@ def sine_region(phi, al):
     return True, phi + (TWO_PI - r) + w  # at the end of a concave interval
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sine_h(s, phi0, x0, v0, sa, xa, va, gu, gd, g):
     """Relative height and its first two derivatives ``s`` after takeoff, pure sine plate.
 
@@ -399,7 +589,7 @@ def sine_h(s, phi0, x0, v0, sa, xa, va, gu, gd, g):
     return xb - g * sn, vb - g * cs, ab + g * sn, sn, cs
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2, q3, guess):
     """First contact after leaving ``(x0, v0)`` at ``phi0``: pure sine plate ``g sin(phi)``.
 
@@ -408,7 +598,7 @@ def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2,
     certificates come from the curvature intervals (comment block above) instead of
     global derivative bounds.  ``al_u``, ``al_d``: :func:`sine_alpha` of ``(g, 1 + mu)`` and
     ``(g, 1 - mu)``; ``q0..q3``: the plate at ``phi0``; ``guess`` (rad, ``<= 0``: none): a
-    predicted flight time (the previous flight's), used only to place trial points.
+    predicted flight time (:func:`predict_flight`), used only to place trial points.
 
     A trial point ``x`` past the certified region is evaluated and then:
     ``h(x) <= 0`` with ``h(s) > 0`` on a convex or concave interval brackets exactly one
@@ -427,6 +617,10 @@ def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2,
     split = gu != gd  # with friction the apex is a curvature edge (h'' jumps up by 2 mu)
     # the body passes below the plate's lowest point -g here: h <= 0 for certain
     s_floor = sa + (va + math.sqrt(va * va + 2.0 * gd * (xa + g))) / gd
+    # ... and comes down through its highest point g here (if it rises above it at all)
+    s_top = -1.0
+    if xa > g:
+        s_top = sa + (va + math.sqrt(va * va + 2.0 * gd * (xa - g))) / gd
     # the takeoff: rounding-sized h, h', h'' zeroed as in fly
     h = x0 - q0
     h1 = v0 - q1
@@ -445,6 +639,12 @@ def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2,
     known = True  # h, h1, h2 are known at s (else only h(s) > 0 is)
     nev = 0
     for _ in range(maxit):
+        if s < s_top < smax and body_at(s, x0, v0, sa, xa, va, gu, gd)[0] > g:
+            # above the plate's whole range (the body's height is concave in time) until
+            # it comes down through g: bound 4 of fly, no evaluation on the way (not
+            # past a step boundary smax: there the intervals end the flight as before)
+            s = s_top
+            known = False
         up = s < sa
         convex, end = sine_region(phi0 + s, al_u if up else al_d)
         b = min(end - phi0, smax)
@@ -523,7 +723,7 @@ def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2,
     return s, True, maxit, g * sn, g * cs, -g * sn, -g * cs
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sine_polish(s, h, h1, g, sn, cs, nev):
     """Contact at ``s`` (``|h|`` at most ``htol`` or rounding): one Newton step onto the root.
 
@@ -542,7 +742,7 @@ def sine_polish(s, h, h1, g, sn, cs, nev):
     return s, True, nev, p, p1, p2, p3
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sine_bracket(lo, x, h, h1, h2, sn, cs, phi0, x0, v0, sa, xa, va, gu, gd, g, nev):
     """The one crossing of ``h`` in ``(lo, x]`` given ``h(lo) > 0 >= h(x)`` (see fly_sine).
 
@@ -584,7 +784,27 @@ def sine_bracket(lo, x, h, h1, h2, sn, cs, phi0, x0, v0, sa, xa, va, gu, gd, g, 
     return sine_polish(x, h, h1, g, sn, cs, nev)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def predict_flight(hist, n, phi, v):
+    """A guess of the next flight's duration (rad; 0: none) from the recent flights.
+
+    ``hist[:n]``: takeoff phase, takeoff velocity and duration of recent flights.  The
+    flight whose takeoff state was nearest (phase on the circle, velocity) is the guess:
+    on a periodic orbit of period up to ``HIST`` the same takeoff recurs.  Only a trial
+    point of the landing solvers: it changes how fast a landing is found, never which.
+    """
+    best = 0.0
+    dmin = math.inf
+    for j in range(n):
+        d = abs(phi - hist[j, 0])
+        d = min(d, TWO_PI - d) + abs(v - hist[j, 1])
+        if d < dmin:
+            dmin = d
+            best = hist[j, 2]
+    return best
+
+
+@njit(cache=True, error_model="numpy")
 def takeoff_ok(p1, p2, gu, gd):
     """Takeoff condition of a body riding the plate: plate accelerates down faster than gravity.
 
@@ -596,7 +816,7 @@ def takeoff_ok(p1, p2, gu, gd):
     return -p2 > gd
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def takeoff_window(g, mu):
     """The takeoff set ``[lo, hi)`` within a cycle of a pure sine plate; ``lo = -1`` if empty.
 
@@ -613,7 +833,7 @@ def takeoff_window(g, mu):
     return lo, math.pi - math.asin(gd / g)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ride_window(phi, phimax, lo, hi):
     """First phase ``>= phi`` inside the takeoff window ``[lo, hi)`` (mod 2 pi).
 
@@ -621,7 +841,7 @@ def ride_window(phi, phimax, lo, hi):
     """
     if lo < 0.0:
         return phimax, 2
-    n = math.floor(phi / TWO_PI)
+    n = np.floor(phi / TWO_PI)
     r = phi - n * TWO_PI
     if lo <= r < hi:
         cand = phi
@@ -634,7 +854,7 @@ def ride_window(phi, phimax, lo, hi):
     return cand, 0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ride_general(
     phi, phimax, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, m4, maxit
 ):  # fmt: skip
@@ -643,14 +863,15 @@ def ride_general(
     ``q = -p'' - g_eff`` must become positive.  A move by ``t`` is certified when
     ``q_down = -p'' - (1 - mu)`` cannot reach 0 (second-derivative bound ``m4``), or when
     the plate keeps moving up (``p'`` bound ``m3``) while ``q_up`` cannot reach 0.
-    Returns ``(phase, status)`` with status 0 takeoff, 1 reached ``phimax``, 2 gave up.
+    Returns ``(phase, status, p, p1, p2, p3)`` with status 0 takeoff (and the plate state
+    there), 1 reached ``phimax``, 2 gave up (plate state zeros).
     """
     for _ in range(maxit):
         if phi >= phimax:
-            return phimax, 1
+            return phimax, 1, 0.0, 0.0, 0.0, 0.0
         p, p1, p2, p3 = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
         if takeoff_ok(p1, p2, gu, gd):
-            return phi, 0
+            return phi, 0, p, p1, p2, p3
         qd = -p2 - gd
         qu = -p2 - gu
         t = 0.0
@@ -662,10 +883,10 @@ def ride_general(
                 t = tb
         # a tangency of q with zero stalls the certified steps: creep past it
         phi += max(t, 1e-12 * (1.0 + abs(phi)))
-    return phi, 2
+    return phi, 2, 0.0, 0.0, 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def tv_sine(a, b, g):
     """Total variation of ``g sin`` over ``[a, b]``: the ride's path length."""
     n = math.ceil((a - HALF_PI) / math.pi)
@@ -679,34 +900,33 @@ def tv_sine(a, b, g):
     return tv + abs(g * (math.sin(b) - math.sin(x)))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def tv_general(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit):
     """Total variation of the plate position over ``[a, b]``, stepping between zeros of ``p'``.
 
     A zero of ``p'`` is approached by certified steps (``m3 >= sup|p'''|``) so that no
     turning point is skipped.
     """
-    px = plate_eval(a, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)[0]
     phi = a
+    p, p1, p2, _ = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+    px = p  # the position at the last turning point
     tv = 0.0
     for _ in range(maxit):
-        p, p1, p2, p3 = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
         sg = 1.0 if p1 >= 0.0 else -1.0
         t = safe_step(sg * p1, sg * p2, m3)
         t = max(t, 1e-12 * (1.0 + abs(phi)))
         if phi + t >= b:
             break
         phi += t
-        p1n = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)[1]
-        if p1n * sg <= 1e-13:  # reached a turning point
-            pn = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)[0]
-            tv += abs(pn - px)
-            px = pn
+        p, p1, p2, _ = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+        if p1 * sg <= 1e-13:  # reached a turning point
+            tv += abs(p - px)
+            px = p
     pb = plate_eval(b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)[0]
     return tv + abs(pb - px)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ride_tv(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit):
     """Path length of a body riding the plate from ``a`` to ``b``: the plate's total variation."""
     if b <= a:
@@ -716,16 +936,17 @@ def ride_tv(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit):
     return tv_general(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit)
 
 
-@njit(cache=True)
-def emit(out, row0, rows, max_rec, rec, n_skip):
-    """Write ``rec`` as the next row unless it is a skipped transient; returns the new row count."""
-    if rec[C_FLIGHT] >= n_skip and rows < max_rec:
-        out[:, row0 + rows] = rec
+@njit(cache=True, error_model="numpy")
+def emit(out, row0, rows, max_rec, row, i, n_skip):
+    """Write ``row[i]`` as the next row unless it is a skipped transient; the new row count."""
+    if row[i, C_FLIGHT] >= n_skip and rows < max_rec:
+        for c in range(NCOL):
+            out[c, row0 + rows] = row[i, c]
         return rows + 1
     return rows
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def trajectory(
     par, hk, ha, hpsi, g_true, g_stated, step_end, init_ride, phi_init, x_init, v_init,
     n_skip, max_rec, settle, start_id, out, row0,
@@ -792,9 +1013,12 @@ def trajectory(
 
     rows = 0
     n_fl = 0  # flights started
-    pend = False  # rec holds a landed flight whose ride is still running
-    rec = np.zeros(NCOL)
-    cur = np.zeros(NCOL)
+    # two rows in the making: row[cur] is the flight in the air, row[rec] (while pend) a
+    # landed flight whose ride is still running (its energy terms are not complete yet)
+    row = np.zeros((2, NCOL))
+    cur = 0
+    rec = 1
+    pend = False
 
     phi = phi_init
     riding = init_ride
@@ -814,6 +1038,9 @@ def trajectory(
     qa3 = 0.0
     n_imp = 0  # flights in the current chatter sequence
     t_prev = 0.0  # the previous flight's duration
+    t_next = 0.0  # the next flight's duration predicted at a rebound (0: none)
+    hist = np.zeros((HIST, 3))  # recent flights: takeoff phase, takeoff velocity, duration
+    n_hist = 0
 
     while True:
         if riding:
@@ -834,6 +1061,7 @@ def trajectory(
                     b0, b2, b3, b4 = 0.0, 0.0, 0.0, 0.0
                 m3 = g * (1.0 + a3) + b3
                 m4 = g * (1.0 + a4) + b4
+                searched = False  # pb0..pb3 at the takeoff known from ride_general
                 if nh == 0 and not arm:
                     if g != g_win:  # the window depends on Gamma only: computed once per step
                         lo_win, hi_win = takeoff_window(g, mu)
@@ -844,13 +1072,16 @@ def trajectory(
                 elif g * (1.0 + a2) + b2 <= gd:
                     pt, st = lim, 2  # the plate can never out-accelerate gravity
                 else:
-                    pt, st = ride_general(
+                    pt, st, pb0, pb1, pb2, pb3 = ride_general(
                         ride_search, lim, g, gu, gd, hk, ha, th, arm, ay, av, aref,
                         lam, om, f2, m3, m4, maxit,
                     )  # fmt: skip
+                    searched = st == 0
                 if st != 0 and pt < bound and k < nsteps - 1:
                     pt = bound  # no takeoff at this Gamma: the body rides on to the next step
-                if fast and st == 0 and qa_ok and pt == phi_e:
+                if searched:
+                    pass  # the search evaluated the plate at the takeoff
+                elif fast and st == 0 and qa_ok and pt == phi_e:
                     # takes off where it landed: the plate state is the contact's
                     pb0, pb1, pb2, pb3 = qa0, qa1, qa2, qa3
                 elif fast and st == 0 and pt != ride_search:
@@ -866,8 +1097,8 @@ def trajectory(
                         fr_ = mu * ride_tv(
                             phi_e, pt, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit
                         )
-                    rec[C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0) + fr_
-                    rec[C_EFRIC] += fr_
+                    row[rec, C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0) + fr_
+                    row[rec, C_EFRIC] += fr_
                 phi_e = pt
                 qa0 = pb0
                 qa1 = pb1
@@ -885,7 +1116,7 @@ def trajectory(
                 g = g_true[k]
                 pb0, pb1, _, _ = plate_eval(bound, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
                 if pend:  # the plate's jump in velocity (and position) is work on the body
-                    rec[C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0)
+                    row[rec, C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0)
                 qa0 = pb0
                 qa1 = pb1
                 phi_e = bound
@@ -893,7 +1124,7 @@ def trajectory(
             if not found:
                 if pend and stuck:
                     # the last flight's ride never ends: energy counted to the give-up point
-                    rows = emit(out, row0, rows, max_rec, rec, n_skip)
+                    rows = emit(out, row0, rows, max_rec, row, rec, n_skip)
                 return rows, ST_STUCK if stuck else ST_END
             x0 = qa0
             v0 = qa1
@@ -903,31 +1134,37 @@ def trajectory(
         # ---- flight ----
         # move the frame so that 0 <= phi < 2 pi (harmonic offsets and armature follow)
         if phi >= TWO_PI or phi < 0.0:
-            nn = math.floor(phi / TWO_PI)
+            nn = np.floor(phi / TWO_PI)
             phi -= nn * TWO_PI
             ncyc += int(nn)
             for j in range(nh):
                 kn = hk[j] * nn
                 th[j] = (th[j] + TWO_PI * (kn - math.floor(kn))) % TWO_PI
             aref -= nn * TWO_PI
-        for c in range(NCOL):
-            cur[c] = 0.0
-        cur[C_GAMMA] = g_stated[k]
-        cur[C_PHI0] = phi
-        cur[C_START] = start_id
-        cur[C_STEP] = k
-        cur[C_TTO] = TWO_PI * ncyc + phi
+        row[cur, C_EFRIC] = 0.0
+        row[cur, C_EPLATE] = 0.0
+        row[cur, C_CHAT] = 0.0
+        row[cur, C_TAIL] = 0.0
+        row[cur, C_GAMMA] = g_stated[k]
+        row[cur, C_PHI0] = phi
+        row[cur, C_START] = start_id
+        row[cur, C_STEP] = k
+        tto = TWO_PI * ncyc + phi
         step_start = step_end[k - 1] if k > 0 else 0
-        cur[C_SETTLED] = 1.0 if cur[C_TTO] >= TWO_PI * (step_start + settle) - 1e-9 else 0.0
-        cur[C_X0] = x0
-        cur[C_V0] = v0
-        cur[C_FLIGHT] = n_fl
+        row[cur, C_TTO] = tto
+        row[cur, C_SETTLED] = 1.0 if tto >= TWO_PI * (step_start + settle) - 1e-9 else 0.0
+        row[cur, C_X0] = x0
+        row[cur, C_V0] = v0
+        row[cur, C_FLIGHT] = n_fl
 
         if arm:
             b0, b2, b3, b4 = arm_bounds(ay, av, f, lam)
         else:
             b0, b2, b3, b4 = 0.0, 0.0, 0.0, 0.0
         phis = phi  # segment start (a flight may cross step boundaries)
+        # the landing search's trial point: after a rebound in the sticking region the
+        # chatter prediction, else the duration of the recent flight with the nearest takeoff
+        guess = t_next if t_next > 0.0 else predict_flight(hist, min(n_hist, HIST), phi, v0)
         k_to = k
         total = 0.0
         ended = False
@@ -948,16 +1185,18 @@ def trajectory(
                     g_al = g
                 s, landed, nit, p, p1, p2, p3 = fly_sine(
                     phis, x0, v0, bound - phis, g, gu, gd, al_u, al_d, htol, maxit,
-                    tq0, tq1, tq2, tq3, t_prev,
+                    tq0, tq1, tq2, tq3, guess,
                 )  # fmt: skip
             else:
                 s, landed, nit, p, p1, p2, p3 = fly(
                     phis, x0, v0, bound - phis, g, gu, gd, hk, ha, th, arm, ay, av, aref,
                     lam, om, f2, m2, m3, m4, pmax, htol, maxit, tq0, tq1, tq2, tq3,
+                    guess if phis == phi else 0.0,
                 )  # fmt: skip
             tq_ok = False
             nit_tot += nit
-            cur[C_EFRIC] += mu * path_length(s, x0, v0, gu, gd)
+            if mu > 0.0:
+                row[cur, C_EFRIC] += mu * path_length(s, x0, v0, gu, gd)
             total += s
             if landed:
                 break
@@ -973,7 +1212,7 @@ def trajectory(
             phis = bound
         if ended:
             if pend:  # its ride ended with this takeoff: complete
-                rows = emit(out, row0, rows, max_rec, rec, n_skip)
+                rows = emit(out, row0, rows, max_rec, row, rec, n_skip)
             return rows, ST_END
         if total == 0.0 and k == k_to:
             # no real flight (a touch of the takeoff line without crossing it): ride on
@@ -982,28 +1221,33 @@ def trajectory(
             ride_search = phi + 1e-9
             continue
         if pend:
-            rows = emit(out, row0, rows, max_rec, rec, n_skip)
+            rows = emit(out, row0, rows, max_rec, row, rec, n_skip)
             pend = False
             if rows >= max_rec:
                 return rows, ST_FULL
         n_fl += 1
         phil = phis + s
-        cur[C_T] = total
-        cur[C_PHIL] = phil % TWO_PI
+        row[cur, C_T] = total
+        row[cur, C_PHIL] = mod_two_pi(phil)
         # chatter: a rebound from the sticking region shorter than the flight before it,
         # i.e. part of a decaying sequence of impacts heading for sticking
         if chatter and total < t_prev:
-            cur[C_CHAT] = 1.0
+            row[cur, C_CHAT] = 1.0
             n_imp += 1
         else:
             n_imp = 0
         t_prev = total
-        cur[C_NSTEPS] = nit_tot
+        t_next = 0.0
+        hist[n_hist % HIST, 0] = row[cur, C_PHI0]
+        hist[n_hist % HIST, 1] = row[cur, C_V0]
+        hist[n_hist % HIST, 2] = total
+        n_hist += 1
+        row[cur, C_NSTEPS] = nit_tot
 
         # ---- impact ---- (p, p1, p2: the plate at the contact, from fly)
         xb, vb, _ = body_eval(s, x0, v0, gu, gd)
         u = min(vb - p1, 0.0)
-        cur[C_VIMP] = u
+        row[cur, C_VIMP] = u
         stick_here = not takeoff_ok(p1, p2, gu, gd)
         # does the chatter end here?  Predict the next micro-flight with the plate's
         # acceleration frozen: the body rises with relative deceleration c1, falls with c2.
@@ -1015,16 +1259,19 @@ def trajectory(
             c2 = (gu if p1 > 0.0 else gd) + p2
             if c1 > 0.0 and c2 > 0.0:
                 tm = w / c1 + w / math.sqrt(c1 * c2)
+                t_next = tm  # a rebound in the sticking region: the next flight is short
                 rho = e * math.sqrt(c2 / c1)
                 if (tm < eps_t or n_imp >= cap) and rho < 1.0:
                     eff_e = 0.0
                     tau = tm / (1.0 - rho)  # the summed geometric tail of micro-flights
-                    cur[C_TAIL] = tau
+                    row[cur, C_TAIL] = tau
         jmp = (1.0 + eff_e) * (-u) / (1.0 + r)  # body velocity change (two-body impact)
-        cur[C_EIMP] = (1.0 - eff_e * eff_e) * u * u / (2.0 * (1.0 + r))
-        cur[C_EPLATE] += jmp * p1 - r * jmp * jmp / 2.0
+        row[cur, C_EIMP] = (1.0 - eff_e * eff_e) * u * u / (2.0 * (1.0 + r))
+        row[cur, C_EPLATE] += jmp * p1 - r * jmp * jmp / 2.0
         if use_arm:
-            # re-reference the armature at the impact; it recoils by -r * jmp
+            # re-reference the armature at the impact; it recoils by -r * jmp, which
+            # changes the plate's velocity (and, by its ODE, higher derivatives) at once
+            p, p1, p2, p3 = armature_kick(p, p1, p2, p3, -r * jmp, lam, f2)
             if arm:
                 yy, yv, _, _ = arm_eval(phil - aref, ay, av, lam, om, f2)
             else:
@@ -1040,26 +1287,40 @@ def trajectory(
             x0 = p
             v0 = vb + jmp
             chatter = stick_here
-            if not use_arm:  # the plate at the next takeoff is the plate at this contact
-                tq0, tq1, tq2, tq3 = p, p1, p2, p3
-                tq_ok = True
-            rows = emit(out, row0, rows, max_rec, cur, n_skip)
+            tq0, tq1, tq2, tq3 = p, p1, p2, p3  # the plate at the next takeoff
+            tq_ok = True
+            rows = emit(out, row0, rows, max_rec, row, cur, n_skip)
             if rows >= max_rec:
                 return rows, ST_FULL
             continue
         # inelastic (or the chatter tail summed): the body rides from here
-        qa_ok = not use_arm  # the armature's recoil changed the plate's velocity
+        qa_ok = True
         qa0 = p
         qa1 = p1
         qa2 = p2
         qa3 = p3
-        rec[:] = cur
+        cur, rec = rec, cur  # this row waits for its ride; the next flight gets the other
         pend = True
         riding = True
         ride_search = phil + tau
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy")
+def spread_stride(n):
+    """A stride coprime to ``n`` near ``0.618 n``: ``i -> i * stride mod n`` is a permutation.
+
+    prange hands each thread a contiguous block of iterations; through this permutation
+    every block holds trajectories spread evenly over the whole input (golden-ratio
+    sequence), so threads get equal work when the cost varies along the input (e.g. a
+    Gamma grid, where high Gammas cost more per flight).
+    """
+    st = max(int(0.6180339887498949 * n), 1)
+    while math.gcd(st, n) != 1:
+        st -= 1
+    return st
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
 def run_many(
     par, hk, ha, hpsi, g_true, g_stated, step_end, init_ride, phi_init, x_init, v_init,
     n_skip, max_rec, settle, start_id, out,
@@ -1069,12 +1330,16 @@ def run_many(
     ``g_true``, ``g_stated``: ``(n_traj, n_steps)``; ``step_end``: ``(n_steps,)``;
     ``phi_init``, ``x_init``, ``v_init``, ``start_id``: ``(n_traj,)``;
     ``out``: ``(NCOL, n_traj * max_rec)`` (one contiguous row per column).
-    Returns ``(rows, status)``, arrays of shape ``(n_traj,)``.
+    Returns ``(rows, status)``, arrays of shape ``(n_traj,)``.  Trajectories are handed
+    out in a spread order (:func:`spread_stride`) so that threads share costly and cheap
+    ones alike; each result depends only on its own trajectory's inputs.
     """
     n = g_true.shape[0]
     rows = np.zeros(n, dtype=np.int64)
     status = np.zeros(n, dtype=np.int64)
-    for i in prange(n):
+    stride = spread_stride(n)
+    for i0 in prange(n):
+        i = (i0 * stride) % n  # a permutation of 0..n-1
         rw, st = trajectory(
             par, hk, ha, hpsi, g_true[i], g_stated[i], step_end, init_ride, phi_init[i],
             x_init[i], v_init[i], n_skip, max_rec, settle, start_id[i], out, i * max_rec,

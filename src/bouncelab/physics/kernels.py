@@ -228,6 +228,18 @@ def path_length(s, x0, v0, gu, gd):
 
 
 @njit(cache=True, error_model="numpy")
+def body_apex(x0, v0, gu):
+    """Phase since takeoff, height and velocity of the body's apex ``(sa, xa, va)``.
+
+    A body leaving downward (``v0 <= 0``) has its "apex" at the takeoff: ``(0, x0, v0)``.
+    """
+    if v0 > 0.0:
+        sa = v0 / gu
+        return sa, x0 + 0.5 * v0 * sa, 0.0
+    return 0.0, x0, v0
+
+
+@njit(cache=True, error_model="numpy")
 def body_at(s, x0, v0, sa, xa, va, gu, gd):
     """Body height, velocity and acceleration ``s`` after takeoff, given its apex.
 
@@ -353,14 +365,7 @@ def fly(
     protocol step boundary) it stops there.
     """
     # the body's apex, once (friction: two parabolas joined there)
-    if v0 > 0.0:
-        sa = v0 / gu
-        xa = x0 + 0.5 * v0 * sa
-        va = 0.0
-    else:
-        sa = 0.0
-        xa = x0
-        va = v0
+    sa, xa, va = body_apex(x0, v0, gu)
     # the time the body comes down through pmax (if it rises above it at all)
     s_desc = -1.0
     if xa > pmax:
@@ -606,14 +611,7 @@ def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2,
     function crosses downward once), solved by :func:`sine_bracket`; ``h(x) > 0`` clears
     ``[s, x]`` when ``h`` is concave there, or convex and still decreasing at ``x``.
     """
-    if v0 > 0.0:
-        sa = v0 / gu
-        xa = x0 + 0.5 * v0 * sa
-        va = 0.0
-    else:
-        sa = 0.0
-        xa = x0
-        va = v0
+    sa, xa, va = body_apex(x0, v0, gu)
     split = gu != gd  # with friction the apex is a curvature edge (h'' jumps up by 2 mu)
     # the body passes below the plate's lowest point -g here: h <= 0 for certain
     s_floor = sa + (va + math.sqrt(va * va + 2.0 * gd * (xa + g))) / gd

@@ -15,6 +15,13 @@ MODELS = [
     ("friction+restitution", {"mu": 0.29, "e": 0.515}),
     ("friction+harmonic", {"mu": 0.2, "k": 0.4, "a": 0.2}),
     ("friction+restitution+harmonic+feedback+gamma_scale", {"mu": 0.2, "e": 0.4, "zeta": 0.3}),
+    # a riding body loads the armature: the ride splits at the plate's turning points
+    ("feedback", {"mass_ratio": 0.2, "f_ratio": 0.45, "zeta": 0.1, "ride_load": 1.0}),
+    ("friction+feedback", {"mu": 0.29, "mass_ratio": 0.1, "f_ratio": 0.67, "ride_load": 1.0}),
+    (
+        "friction+restitution+harmonic+feedback",
+        {"mu": 0.2, "e": 0.4, "k": 2.0, "a": 0.1, "zeta": 0.3, "ride_load": 1.0},
+    ),
 ]
 
 

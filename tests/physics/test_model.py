@@ -16,7 +16,11 @@ def test_effects_table_has_every_contract_parameter_with_sane_bounds():
         "feedback": {"mass_ratio", "f_ratio", "zeta"},
         "gamma_scale": {"s"},
     }
+    # the contract's parameters, plus feedback's optional ride_load (default 0: the
+    # contract's impacts-only armature)
+    want["feedback"].add("ride_load")
     assert {k: set(v) for k, v in EFFECTS.items()} == want
+    assert EFFECTS["feedback"]["ride_load"][0] == 0.0
     for params in EFFECTS.values():
         for default, lo, hi in params.values():
             assert lo <= default <= hi and lo < hi

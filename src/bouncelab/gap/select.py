@@ -26,11 +26,21 @@ import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
-from bouncelab.gap.fit import K_CHOICES, FitResult, FitSettings, Problem, fit_model
+from bouncelab.gap.fit import (
+    K_CHOICES,
+    RIDE_LOAD_CHOICES,
+    FitResult,
+    FitSettings,
+    Problem,
+    fit_model,
+)
 from bouncelab.physics import EFFECT_ORDER, Model
 
 #: The candidate effects (CONTRACTS.md section 5), in the order they are tried.
 CANDIDATES = EFFECT_ORDER
+
+#: Discrete parameters fitted as separate searches: name -> (effect, choices).
+SPLITS = {"k": ("harmonic", K_CHOICES), "ride_load": ("feedback", RIDE_LOAD_CHOICES)}
 
 
 @dataclass(frozen=True)
@@ -113,16 +123,22 @@ def fit_many(jobs: list[tuple], pool=None, progress: bool | None = None) -> list
         bar.close()
 
 
-def _discrete_splits(effect: str, fixed: dict, k_alone: float | None = None) -> list[dict]:
-    """One fit per value of a discrete parameter (the harmonic ``k``), else one fit.
+def _discrete_splits(effect: str, fixed: dict, chosen: dict | None = None) -> list[dict]:
+    """One fit per value of a discrete parameter (harmonic ``k``, feedback ``ride_load``),
+    else one fit.
 
-    A separate global search per ``k`` explores ``a`` and ``psi`` properly for each
-    multiple; one search over all three mixes the choices and misses narrow basins.
-    Once the harmonic has been fitted alone (``k_alone``, round 1), later rounds keep its
-    ``k``: four joint searches per round would cost more than all other effects together.
+    A separate global search per choice explores the continuous parameters properly for
+    each; one search over all mixes the choices and misses narrow basins.  Once the
+    effect has been fitted alone (round 1), later rounds keep its choice (``chosen``:
+    parameter -> value): four joint searches per round would cost more than all other
+    effects together.
     """
-    if effect == "harmonic" and "k" not in fixed:
-        return [{"k": k} for k in K_CHOICES] if k_alone is None else [{"k": k_alone}]
+    chosen = chosen or {}
+    for name, (owner, values) in SPLITS.items():
+        if effect == owner and name not in fixed:
+            if name in chosen:
+                return [{name: chosen[name]}]
+            return [{name: v} for v in values]
     return [{}]
 
 
@@ -195,12 +211,14 @@ def forward_select(
                 break
             prev = {**current.model.params, **fixed}
             owners, jobs = [], []
-            k_alone = next(
-                (f.model.params["k"] for e, f in (rounds[0] if rounds else []) if e == "harmonic"),
-                None,
-            )
+            chosen = {  # the discrete choices of round 1, where each effect was fitted alone
+                name: f.model.params[name]
+                for e, f in (rounds[0] if rounds else [])
+                for name, (owner, _values) in SPLITS.items()
+                if e == owner
+            }
             for eff in todo:
-                for extra in _discrete_splits(eff, fixed, k_alone):
+                for extra in _discrete_splits(eff, fixed, chosen):
                     name = model_name([*effects, eff])
                     owners.append(eff)
                     jobs.append((problem, name, prev, {**fixed, **extra}, None, fit_settings, seed))

@@ -36,7 +36,8 @@ P_HTOL = 7  # contact resolution: relative height <= HTOL counts as contact
 P_CAP = 8  # hard cap on flights in one chatter sequence
 P_RIDE = 9  # longest ride searched for a takeoff (rad) before declaring the body stuck
 P_FAST = 10  # 1.0: pure sine plates use fly_sine; 0.0: the general solver fly everywhere
-NPAR = 11
+P_LOAD = 11  # ride_load: share of a riding body's contact force that loads the armature
+NPAR = 12
 
 # --- output columns -----------------------------------------------------------------
 C_GAMMA = 0  # stated Gamma at takeoff
@@ -195,6 +196,124 @@ def plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2):
         p2 += y2
         p3 += y3
     return p, p1, p2, p3
+
+
+@njit(cache=True, error_model="numpy")
+def ride_coefficients(hk, f2, lam, load):
+    """Forced response of the armature to a riding body, per plate component.
+
+    While the body rides, the contact force ``n = chi_p'' + 1 + mu sigma`` (weight,
+    inertia, friction on the guide; ``sigma`` the sign of the plate velocity) loads the
+    armature: ``(1 + L) y'' + 2 lam y' + f2 y = -L (c'' + 1 + mu sigma)`` with
+    ``L = load * mass_ratio`` and ``c`` the commanded plate.  For a component
+    ``a sin(k phi + th)`` of ``c / g`` the particular solution is
+    ``g a (P sin(k phi + th) + Q cos(k phi + th))`` with ``M = f2 - (1 + L) k^2``,
+    ``D = M^2 + (2 lam k)^2``, ``P = L k^2 M / D``, ``Q = -2 lam k^3 L / D``.
+
+    Returns ``rp``, shape ``(2 (n_harmonics + 1) + 1,)``: ``P, Q`` of the fundamental,
+    then of each harmonic, and a last slot for the constant part (set per ride segment
+    by :func:`ride_constant`).
+    """
+    nh = hk.shape[0]
+    rp = np.zeros(2 * (nh + 1) + 1)
+    for j in range(nh + 1):
+        k = 1.0 if j == 0 else hk[j - 1]
+        m = f2 - (1.0 + load) * k * k
+        c = 2.0 * lam * k
+        d = m * m + c * c
+        rp[2 * j] = load * k * k * m / d
+        rp[2 * j + 1] = -load * k * k * c / d
+    return rp
+
+
+@njit(cache=True, error_model="numpy")
+def ride_bounds(ha, hk, rp):
+    """``sum_j |a_j| k_j^n |P_j + i Q_j|`` for ``n = 2, 3, 4``: bounds (over g) of the
+    forced response's derivatives."""
+    r = math.hypot(rp[0], rp[1])
+    b2 = r
+    b3 = r
+    b4 = r
+    for j in range(hk.shape[0]):
+        r = abs(ha[j]) * math.hypot(rp[2 * j + 2], rp[2 * j + 3])
+        b2 += r * hk[j] ** 2
+        b3 += r * hk[j] ** 3
+        b4 += r * hk[j] ** 4
+    return b2, b3, b4
+
+
+@njit(cache=True, error_model="numpy")
+def ride_particular(phi, g, hk, ha, th, rp):
+    """The armature's forced response to a riding body and its first three derivatives.
+
+    ``rp`` from :func:`ride_coefficients`, its last slot the constant (static) part.
+    """
+    sn = math.sin(phi)
+    cs = math.cos(phi)
+    u = rp[0] * sn + rp[1] * cs
+    w = rp[0] * cs - rp[1] * sn
+    p = u
+    p1 = w
+    p2 = -u
+    p3 = -w
+    for j in range(hk.shape[0]):
+        k = hk[j]
+        arg = k * phi + th[j]
+        sj = math.sin(arg)
+        cj = math.cos(arg)
+        u = ha[j] * (rp[2 * j + 2] * sj + rp[2 * j + 3] * cj)
+        w = ha[j] * (rp[2 * j + 2] * cj - rp[2 * j + 3] * sj)
+        p += u
+        p1 += k * w
+        p2 -= k * k * u
+        p3 -= k * k * k * w
+    return g * p + rp[rp.shape[0] - 1], g * p1, g * p2, g * p3
+
+
+@njit(cache=True, error_model="numpy")
+def plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp):
+    """:func:`plate_eval`, plus the forced response to a riding body when ``rp`` is not
+    empty (then ``ay, av, aref, lam, om, f2`` describe the free part of the loaded
+    armature)."""
+    p, p1, p2, p3 = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+    if rp.shape[0] > 0:
+        y, y1, y2, y3 = ride_particular(phi, g, hk, ha, th, rp)
+        p += y
+        p1 += y1
+        p2 += y2
+        p3 += y3
+    return p, p1, p2, p3
+
+
+@njit(cache=True, error_model="numpy")
+def plate_direction(p1, p2):
+    """Sign of the plate velocity, or of its acceleration where the velocity is zero."""
+    if abs(p1) > 1e-13:
+        return 1.0 if p1 > 0.0 else -1.0
+    return 1.0 if p2 >= 0.0 else -1.0
+
+
+@njit(cache=True, error_model="numpy")
+def ride_armature(phi, g, hk, ha, th, ay, av, aref, lam, om, f2, rp):
+    """Deflection and velocity of the loaded armature: free part plus forced part."""
+    y, y1, _, _ = arm_eval(phi - aref, ay, av, lam, om, f2)
+    yp, yp1, _, _ = ride_particular(phi, g, hk, ha, th, rp)
+    return y + yp, y1 + yp1
+
+
+@njit(cache=True, error_model="numpy")
+def ride_rebase(phi, y, y1, g, hk, ha, th, rp, load, f2, mu, sigma):
+    """Free part ``(ay, av)`` at ``phi`` of a loaded armature at deflection ``y``, velocity
+    ``y1``, for plate direction ``sigma`` (sets ``rp``'s constant, :func:`ride_constant`)."""
+    ride_constant(rp, load, f2, mu, sigma)
+    yp, yp1, _, _ = ride_particular(phi, g, hk, ha, th, rp)
+    return y - yp, y1 - yp1
+
+
+@njit(cache=True, error_model="numpy")
+def ride_constant(rp, load, f2, mu, sigma):
+    """Set the static part of the forced response: ``-L (1 + mu sigma) / f2``."""
+    rp[rp.shape[0] - 1] = -load * (1.0 + mu * sigma) / f2
 
 
 @njit(cache=True, error_model="numpy")
@@ -854,22 +973,37 @@ def ride_window(phi, phimax, lo, hi):
 
 @njit(cache=True, error_model="numpy")
 def ride_general(
-    phi, phimax, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, m4, maxit
+    phi, phimax, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, m4, maxit,
+    rp, sig, turn, t_from,
 ):  # fmt: skip
     """First phase ``>= phi`` where the takeoff condition holds, any plate (certified stepping).
 
     ``q = -p'' - g_eff`` must become positive.  A move by ``t`` is certified when
     ``q_down = -p'' - (1 - mu)`` cannot reach 0 (second-derivative bound ``m4``), or when
     the plate keeps moving up (``p'`` bound ``m3``) while ``q_up`` cannot reach 0.
+    ``rp``: the riding body's load on the armature (:func:`plate_eval_ride`; empty: none).
+    With ``turn`` the search also stops where the plate velocity, of sign ``sig``, turns
+    (the load's friction part changes sign there); moves are then also certified not to
+    pass a zero of ``sig p'`` (bound ``m3``).  Takeoffs count from ``t_from`` on (the end
+    of a summed chatter tail); before it only turning points are looked for.
     Returns ``(phase, status, p, p1, p2, p3)`` with status 0 takeoff (and the plate state
-    there), 1 reached ``phimax``, 2 gave up (plate state zeros).
+    there), 1 reached ``phimax``, 2 gave up (plate state zeros), 3 a turning point of the
+    plate (and the plate state there).
     """
     for _ in range(maxit):
         if phi >= phimax:
             return phimax, 1, 0.0, 0.0, 0.0, 0.0
-        p, p1, p2, p3 = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
-        if takeoff_ok(p1, p2, gu, gd):
+        p, p1, p2, p3 = plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp)
+        if phi >= t_from and takeoff_ok(p1, p2, gu, gd):
             return phi, 0, p, p1, p2, p3
+        if turn and sig * p1 <= 1e-13 and sig * p2 <= 0.0:
+            return phi, 3, p, p1, p2, p3
+        if phi < t_from:
+            t = t_from - phi
+            if turn:
+                t = min(t, safe_step(max(sig * p1, 0.0), sig * p2, m3))
+            phi += max(t, 1e-12 * (1.0 + abs(phi)))
+            continue
         qd = -p2 - gd
         qu = -p2 - gu
         t = 0.0
@@ -879,6 +1013,8 @@ def ride_general(
             tb = min(safe_step(p1, p2, m3), safe_step(-qu, p3, m4))
             if tb > t:
                 t = tb
+        if turn:
+            t = min(t, safe_step(max(sig * p1, 0.0), sig * p2, m3))
         # a tangency of q with zero stalls the certified steps: creep past it
         phi += max(t, 1e-12 * (1.0 + abs(phi)))
     return phi, 2, 0.0, 0.0, 0.0, 0.0
@@ -978,6 +1114,23 @@ def trajectory(
     gd = 1.0 - mu
     use_arm = r > 0.0
     nh = hk.shape[0]
+    # a riding body loads the armature (ride_load > 0): while it rides, the armature's
+    # free part follows the loaded ODE (lam_r, om_r, f2_r) and rp_ride holds the forced part
+    load = r * par[P_LOAD]
+    ride_arm = use_arm and load > 0.0
+    turn = ride_arm and mu > 0.0  # the load's friction part flips at the plate's turning points
+    lam_r = lam / (1.0 + load)
+    f2_r = f2 / (1.0 + load)
+    om_r = f2_r - lam_r * lam_r
+    f_r = math.sqrt(f2_r)
+    rp_none = np.zeros(0)
+    rp_ride = ride_coefficients(hk, f2, lam, load) if ride_arm else rp_none
+    rb2, rb3, rb4 = ride_bounds(ha, hk, rp_ride) if ride_arm else (0.0, 0.0, 0.0)
+    if ride_arm:
+        rl, ro, rf2, rf, rpc = lam_r, om_r, f2_r, f_r, rp_ride
+    else:
+        rl, ro, rf2, rf, rpc = lam, om, f2, f, rp_none
+    sig = 1.0  # sign of the plate velocity during the current ride segment
     a0 = 0.0
     a2 = 0.0
     a3 = 0.0
@@ -1046,19 +1199,36 @@ def trajectory(
             # energy: riding, the normal force does work [chi_p'^2/2 + chi_p] + mu TV(chi_p)
             # and friction takes mu TV(chi_p); (qa0, qa1) is the plate state at phi_e
             phi_e = phi
+            if ride_arm:
+                # the armature turns loaded here (free part re-referenced at phi_e)
+                if arm:
+                    yy, yv, _, _ = arm_eval(phi_e - aref, ay, av, lam, om, f2)
+                else:  # never kicked (a start on the plate): the steady loaded ride
+                    rp_ride[rp_ride.shape[0] - 1] = 0.0
+                    yy, yv, _, _ = ride_particular(phi_e, g, hk, ha, th, rp_ride)
+                c1, c2 = plate_eval(phi_e, g, hk, ha, th, False, 0.0, 0.0, 0.0, lam, om, f2)[1:3]
+                sig = plate_direction(c1 + yv, c2)
+                if not arm:
+                    yy -= load * (1.0 + mu * sig) / f2  # the static part
+                ay, av = ride_rebase(phi_e, yy, yv, g, hk, ha, th, rp_ride, load, f2, mu, sig)
+                aref = phi_e
+                arm = True
             if not qa_ok:
-                qa0, qa1, _, _ = plate_eval(phi_e, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+                qa0, qa1, _, _ = plate_eval_ride(
+                    phi_e, g, hk, ha, th, arm, ay, av, aref, rl, ro, rf2, rpc
+                )  # fmt: skip
             found = False
             stuck = False
+            ride_from = ride_search  # the stuck limit counts from here (reset per step)
             while True:
                 bound = TWO_PI * (step_end[k] - ncyc)
-                lim = min(bound, ride_search + ride_max)
+                lim = min(bound, ride_from + ride_max)
                 if arm:
-                    b0, b2, b3, b4 = arm_bounds(ay, av, f, lam)
+                    b0, b2, b3, b4 = arm_bounds(ay, av, rf, rl)
                 else:
                     b0, b2, b3, b4 = 0.0, 0.0, 0.0, 0.0
-                m3 = g * (1.0 + a3) + b3
-                m4 = g * (1.0 + a4) + b4
+                m3 = g * (1.0 + a3 + rb3) + b3
+                m4 = g * (1.0 + a4 + rb4) + b4
                 searched = False  # pb0..pb3 at the takeoff known from ride_general
                 if nh == 0 and not arm:
                     if g != g_win:  # the window depends on Gamma only: computed once per step
@@ -1067,14 +1237,28 @@ def trajectory(
                         cs_win = math.cos(lo_win)
                         g_win = g
                     pt, st = ride_window(ride_search, lim, lo_win, hi_win)
-                elif g * (1.0 + a2) + b2 <= gd:
+                elif g * (1.0 + a2 + rb2) + b2 <= gd and not turn:
                     pt, st = lim, 2  # the plate can never out-accelerate gravity
                 else:
                     pt, st, pb0, pb1, pb2, pb3 = ride_general(
-                        ride_search, lim, g, gu, gd, hk, ha, th, arm, ay, av, aref,
-                        lam, om, f2, m3, m4, maxit,
+                        phi_e if turn else ride_search, lim, g, gu, gd, hk, ha, th, arm,
+                        ay, av, aref, rl, ro, rf2, m3, m4, maxit, rpc, sig, turn, ride_search,
                     )  # fmt: skip
-                    searched = st == 0
+                    searched = st == 0 or st == 3
+                if st == 3:
+                    # a turning point of the plate: the load's friction part flips
+                    if pend:
+                        fr_ = mu * abs(pb0 - qa0)  # a segment without turning points
+                        row[rec, C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0) + fr_
+                        row[rec, C_EFRIC] += fr_
+                    yy, yv = ride_armature(pt, g, hk, ha, th, ay, av, aref, rl, ro, rf2, rpc)
+                    sig = -sig
+                    ay, av = ride_rebase(pt, yy, yv, g, hk, ha, th, rp_ride, load, f2, mu, sig)
+                    aref = pt
+                    phi_e = pt
+                    qa0 = pb0
+                    qa1 = pb1
+                    continue
                 if st != 0 and pt < bound and k < nsteps - 1:
                     pt = bound  # no takeoff at this Gamma: the body rides on to the next step
                 if searched:
@@ -1086,12 +1270,14 @@ def trajectory(
                     # a window start lo + 2 pi n: the plate there in closed form
                     pb0, pb1, pb2, pb3 = g * sn_win, g * cs_win, -g * sn_win, -g * cs_win
                 else:
-                    pb0, pb1, pb2, pb3 = plate_eval(
-                        pt, g, hk, ha, th, arm, ay, av, aref, lam, om, f2
+                    pb0, pb1, pb2, pb3 = plate_eval_ride(
+                        pt, g, hk, ha, th, arm, ay, av, aref, rl, ro, rf2, rpc
                     )  # fmt: skip
                 if pend:
                     fr_ = 0.0
-                    if mu > 0.0:
+                    if turn:
+                        fr_ = mu * abs(pb0 - qa0)  # a segment without turning points
+                    elif mu > 0.0:
                         fr_ = mu * ride_tv(
                             phi_e, pt, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit
                         )
@@ -1103,6 +1289,16 @@ def trajectory(
                 if st == 0:
                     phi = pt
                     found = True
+                    if ride_arm:  # unloaded from here: the free armature from its state
+                        yy, yv = ride_armature(pt, g, hk, ha, th, ay, av, aref, rl, ro, rf2, rpc)
+                        ay = yy
+                        av = yv
+                        aref = pt
+                        pb0, pb1, pb2, pb3 = plate_eval(
+                            pt, g, hk, ha, th, arm, ay, av, aref, lam, om, f2
+                        )  # fmt: skip
+                        qa0 = pb0
+                        qa1 = pb1
                     tq0, tq1, tq2, tq3 = pb0, pb1, pb2, pb3  # plate at the takeoff
                     tq_ok = True
                     break
@@ -1110,15 +1306,27 @@ def trajectory(
                     stuck = pt < bound
                     break  # stuck for good, or the protocol ends during the ride
                 # step boundary: the plate switches amplitude under the riding body
+                if ride_arm:
+                    yy, yv = ride_armature(bound, g, hk, ha, th, ay, av, aref, rl, ro, rf2, rpc)
                 k += 1
                 g = g_true[k]
-                pb0, pb1, _, _ = plate_eval(bound, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+                if ride_arm:  # the forced part changes with Gamma: re-reference the free part
+                    c1, c2 = plate_eval(bound, g, hk, ha, th, False, 0.0, 0.0, 0.0, lam, om, f2)[
+                        1:3
+                    ]
+                    sig = plate_direction(c1 + yv, c2)
+                    ay, av = ride_rebase(bound, yy, yv, g, hk, ha, th, rp_ride, load, f2, mu, sig)
+                    aref = bound
+                pb0, pb1, _, _ = plate_eval_ride(
+                    bound, g, hk, ha, th, arm, ay, av, aref, rl, ro, rf2, rpc
+                )  # fmt: skip
                 if pend:  # the plate's jump in velocity (and position) is work on the body
                     row[rec, C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0)
                 qa0 = pb0
                 qa1 = pb1
                 phi_e = bound
                 ride_search = bound
+                ride_from = bound
             if not found:
                 if pend and stuck:
                     # the last flight's ride never ends: energy counted to the give-up point

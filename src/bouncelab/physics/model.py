@@ -30,6 +30,9 @@ EFFECTS: dict[str, dict[str, tuple[float, float, float]]] = {
         "mass_ratio": (0.05, 0.0, 0.5),
         "f_ratio": (0.5, 0.05, 3.0),
         "zeta": (0.1, 0.01, 1.0),
+        # 0: the armature feels impacts only (CONTRACTS.md section 5); 1: also the full
+        # contact force of a riding body (weight and inertia), as a real shaker does
+        "ride_load": (0.0, 0.0, 1.0),
     },
     "gamma_scale": {"s": (1.0, 0.7, 1.3)},
 }
@@ -47,6 +50,7 @@ _VALID = {
     "mass_ratio": (lambda v: v >= 0.0, "must be >= 0"),
     "f_ratio": (lambda v: v > 0.0, "must be > 0"),
     "zeta": (lambda v: v >= 0.0, "must be >= 0"),
+    "ride_load": (lambda v: 0.0 <= v <= 1.0, "must be in [0, 1]"),
     "s": (lambda v: v > 0.0, "must be > 0"),
 }
 

@@ -81,6 +81,7 @@ def kernel_params(model: Model, fast: bool = True) -> np.ndarray:
     par[K.P_R] = p.get("mass_ratio", 0.0)
     par[K.P_F] = p.get("f_ratio", 1.0)
     par[K.P_Z] = p.get("zeta", 0.0)
+    par[K.P_LOAD] = p.get("ride_load", 0.0)
     par[K.P_EPS] = CHATTER_EPS
     par[K.P_HTOL] = CONTACT_TOL
     par[K.P_CAP] = CHATTER_CAP

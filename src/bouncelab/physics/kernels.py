@@ -1260,6 +1260,12 @@ def trajectory(
                     qa1 = pb1
                     continue
                 if st != 0 and pt < bound and k < nsteps - 1:
+                    if turn and st == 1:
+                        # no takeoff at this Gamma: ride on to the step's end with the
+                        # turning points tracked (no takeoff searched before it)
+                        ride_search = bound
+                        ride_from = bound
+                        continue
                     pt = bound  # no takeoff at this Gamma: the body rides on to the next step
                 if searched:
                     pass  # the search evaluated the plate at the takeoff

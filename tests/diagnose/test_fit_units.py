@@ -144,3 +144,16 @@ def test_clipped_caps_each_step_at_gap_cap_floors():
     p = Problem.__new__(Problem)
     p.floor = np.array([0.03, 1.0])
     np.testing.assert_allclose(p.clipped(np.array([9.0, 2.0])), [GAP_CAP * 0.03, 2.0])
+
+
+def test_pick_addition_prefers_fewer_parameters_within_the_tie():
+    from bouncelab.gap.select import pick_addition
+
+    rows = [("feedback", 0.130, 3), ("gamma_scale", 0.143, 1), ("harmonic", 1.17, 2)]
+    assert rows[pick_addition(rows, 0.25)][0] == "gamma_scale"
+    # outside the tie the least gap wins whatever its parameters
+    rows = [("feedback", 0.66, 3), ("gamma_scale", 4.14, 1)]
+    assert rows[pick_addition(rows, 0.25)][0] == "feedback"
+    # no tie band: the least gap
+    rows = [("feedback", 0.130, 3), ("gamma_scale", 0.143, 1)]
+    assert rows[pick_addition(rows, 0.0)][0] == "feedback"

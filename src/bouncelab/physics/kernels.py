@@ -1229,6 +1229,10 @@ def trajectory(
                     b0, b2, b3, b4 = 0.0, 0.0, 0.0, 0.0
                 m3 = g * (1.0 + a3 + rb3) + b3
                 m4 = g * (1.0 + a4 + rb4) + b4
+                # turning points are tracked only while the plate moves measurably: on a
+                # still plate (Gamma 0, the armature rung down) the sign of its velocity is
+                # rounding noise and the certified steps would creep for ever
+                trk = turn and m3 > 1e-6
                 searched = False  # pb0..pb3 at the takeoff known from ride_general
                 if nh == 0 and not arm:
                     if g != g_win:  # the window depends on Gamma only: computed once per step
@@ -1237,12 +1241,12 @@ def trajectory(
                         cs_win = math.cos(lo_win)
                         g_win = g
                     pt, st = ride_window(ride_search, lim, lo_win, hi_win)
-                elif g * (1.0 + a2 + rb2) + b2 <= gd and not turn:
+                elif g * (1.0 + a2 + rb2) + b2 <= gd and not trk:
                     pt, st = lim, 2  # the plate can never out-accelerate gravity
                 else:
                     pt, st, pb0, pb1, pb2, pb3 = ride_general(
-                        phi_e if turn else ride_search, lim, g, gu, gd, hk, ha, th, arm,
-                        ay, av, aref, rl, ro, rf2, m3, m4, maxit, rpc, sig, turn, ride_search,
+                        phi_e if trk else ride_search, lim, g, gu, gd, hk, ha, th, arm,
+                        ay, av, aref, rl, ro, rf2, m3, m4, maxit, rpc, sig, trk, ride_search,
                     )  # fmt: skip
                     searched = st == 0 or st == 3
                 if st == 3:
@@ -1260,7 +1264,7 @@ def trajectory(
                     qa1 = pb1
                     continue
                 if st != 0 and pt < bound and k < nsteps - 1:
-                    if turn and st == 1:
+                    if trk and st == 1:
                         # no takeoff at this Gamma: ride on to the step's end with the
                         # turning points tracked (no takeoff searched before it)
                         ride_search = bound

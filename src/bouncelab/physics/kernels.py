@@ -990,13 +990,15 @@ def ride_general(
     there), 1 reached ``phimax``, 2 gave up (plate state zeros), 3 a turning point of the
     plate (and the plate state there).
     """
+    phi0 = phi
     for _ in range(maxit):
         if phi >= phimax:
             return phimax, 1, 0.0, 0.0, 0.0, 0.0
         p, p1, p2, p3 = plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp)
         if phi >= t_from and takeoff_ok(p1, p2, gu, gd):
             return phi, 0, p, p1, p2, p3
-        if turn and sig * p1 <= 1e-13 and sig * p2 <= 0.0:
+        # (not where the search starts: a turning point just handled must not stall it)
+        if turn and phi > phi0 and sig * p1 <= 1e-13 and sig * p2 <= 0.0:
             return phi, 3, p, p1, p2, p3
         if phi < t_from:
             t = t_from - phi
@@ -1035,14 +1037,14 @@ def tv_sine(a, b, g):
 
 
 @njit(cache=True, error_model="numpy")
-def tv_general(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit):
+def tv_general(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit, rp):
     """Total variation of the plate position over ``[a, b]``, stepping between zeros of ``p'``.
 
     A zero of ``p'`` is approached by certified steps (``m3 >= sup|p'''|``) so that no
     turning point is skipped.
     """
     phi = a
-    p, p1, p2, _ = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+    p, p1, p2, _ = plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp)
     px = p  # the position at the last turning point
     tv = 0.0
     for _ in range(maxit):
@@ -1052,22 +1054,22 @@ def tv_general(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit):
         if phi + t >= b:
             break
         phi += t
-        p, p1, p2, _ = plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
+        p, p1, p2, _ = plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp)
         if p1 * sg <= 1e-13:  # reached a turning point
             tv += abs(p - px)
             px = p
-    pb = plate_eval(b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)[0]
+    pb = plate_eval_ride(b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp)[0]
     return tv + abs(pb - px)
 
 
 @njit(cache=True, error_model="numpy")
-def ride_tv(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit):
+def ride_tv(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit, rp):
     """Path length of a body riding the plate from ``a`` to ``b``: the plate's total variation."""
     if b <= a:
         return 0.0
     if hk.shape[0] == 0 and not arm:
         return tv_sine(a, b, g)
-    return tv_general(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit)
+    return tv_general(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit, rp)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1118,7 +1120,12 @@ def trajectory(
     # free part follows the loaded ODE (lam_r, om_r, f2_r) and rp_ride holds the forced part
     load = r * par[P_LOAD]
     ride_arm = use_arm and load > 0.0
-    turn = ride_arm and mu > 0.0  # the load's friction part flips at the plate's turning points
+    # The load's friction part flips sign where the plate turns.  Tracking the flips is
+    # implemented (ride_general's status 3) but off: at low Gamma the flip itself can
+    # reverse the plate at once (stick-slip, the plate held by the friction load), which
+    # needs a stick phase the model does not have; the searches then crept for ever.  The
+    # sign at each ride's start is kept instead (an error of order L mu in the load).
+    turn = False
     lam_r = lam / (1.0 + load)
     f2_r = f2 / (1.0 + load)
     om_r = f2_r - lam_r * lam_r
@@ -1289,8 +1296,9 @@ def trajectory(
                         fr_ = mu * abs(pb0 - qa0)  # a segment without turning points
                     elif mu > 0.0:
                         fr_ = mu * ride_tv(
-                            phi_e, pt, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit
-                        )
+                            phi_e, pt, g, hk, ha, th, arm, ay, av, aref, rl, ro, rf2, m3, maxit,
+                            rpc,
+                        )  # fmt: skip
                     row[rec, C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0) + fr_
                     row[rec, C_EFRIC] += fr_
                 phi_e = pt

@@ -973,8 +973,7 @@ def ride_window(phi, phimax, lo, hi):
 
 @njit(cache=True, error_model="numpy")
 def ride_general(
-    phi, phimax, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, m4, maxit,
-    rp, sig, turn, t_from,
+    phi, phimax, g, gu, gd, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, m4, maxit, rp
 ):  # fmt: skip
     """First phase ``>= phi`` where the takeoff condition holds, any plate (certified stepping).
 
@@ -982,30 +981,15 @@ def ride_general(
     ``q_down = -p'' - (1 - mu)`` cannot reach 0 (second-derivative bound ``m4``), or when
     the plate keeps moving up (``p'`` bound ``m3``) while ``q_up`` cannot reach 0.
     ``rp``: the riding body's load on the armature (:func:`plate_eval_ride`; empty: none).
-    With ``turn`` the search also stops where the plate velocity, of sign ``sig``, turns
-    (the load's friction part changes sign there); moves are then also certified not to
-    pass a zero of ``sig p'`` (bound ``m3``).  Takeoffs count from ``t_from`` on (the end
-    of a summed chatter tail); before it only turning points are looked for.
     Returns ``(phase, status, p, p1, p2, p3)`` with status 0 takeoff (and the plate state
-    there), 1 reached ``phimax``, 2 gave up (plate state zeros), 3 a turning point of the
-    plate (and the plate state there).
+    there), 1 reached ``phimax``, 2 gave up (plate state zeros).
     """
-    phi0 = phi
     for _ in range(maxit):
         if phi >= phimax:
             return phimax, 1, 0.0, 0.0, 0.0, 0.0
         p, p1, p2, p3 = plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp)
-        if phi >= t_from and takeoff_ok(p1, p2, gu, gd):
+        if takeoff_ok(p1, p2, gu, gd):
             return phi, 0, p, p1, p2, p3
-        # (not where the search starts: a turning point just handled must not stall it)
-        if turn and phi > phi0 and sig * p1 <= 1e-13 and sig * p2 <= 0.0:
-            return phi, 3, p, p1, p2, p3
-        if phi < t_from:
-            t = t_from - phi
-            if turn:
-                t = min(t, safe_step(max(sig * p1, 0.0), sig * p2, m3))
-            phi += max(t, 1e-12 * (1.0 + abs(phi)))
-            continue
         qd = -p2 - gd
         qu = -p2 - gu
         t = 0.0
@@ -1015,8 +999,6 @@ def ride_general(
             tb = min(safe_step(p1, p2, m3), safe_step(-qu, p3, m4))
             if tb > t:
                 t = tb
-        if turn:
-            t = min(t, safe_step(max(sig * p1, 0.0), sig * p2, m3))
         # a tangency of q with zero stalls the certified steps: creep past it
         phi += max(t, 1e-12 * (1.0 + abs(phi)))
     return phi, 2, 0.0, 0.0, 0.0, 0.0
@@ -1120,12 +1102,11 @@ def trajectory(
     # free part follows the loaded ODE (lam_r, om_r, f2_r) and rp_ride holds the forced part
     load = r * par[P_LOAD]
     ride_arm = use_arm and load > 0.0
-    # The load's friction part flips sign where the plate turns.  Tracking the flips is
-    # implemented (ride_general's status 3) but off: at low Gamma the flip itself can
-    # reverse the plate at once (stick-slip, the plate held by the friction load), which
-    # needs a stick phase the model does not have; the searches then crept for ever.  The
-    # sign at each ride's start is kept instead (an error of order L mu in the load).
-    turn = False
+    # The load's friction part flips sign where the plate turns.  It is not followed: at
+    # low Gamma the flip itself can reverse the plate at once (stick-slip, the plate held
+    # by the friction load), which needs a stick phase the model does not have (a search
+    # that stopped at each turn crept for ever).  The sign at each ride's start (or Gamma
+    # step) is kept (an error of order L mu in the load).
     lam_r = lam / (1.0 + load)
     f2_r = f2 / (1.0 + load)
     om_r = f2_r - lam_r * lam_r
@@ -1137,7 +1118,7 @@ def trajectory(
         rl, ro, rf2, rf, rpc = lam_r, om_r, f2_r, f_r, rp_ride
     else:
         rl, ro, rf2, rf, rpc = lam, om, f2, f, rp_none
-    sig = 1.0  # sign of the plate velocity during the current ride segment
+    sig = 1.0  # sign of the plate velocity where the current ride (or its step) began
     a0 = 0.0
     a2 = 0.0
     a3 = 0.0
@@ -1236,10 +1217,6 @@ def trajectory(
                     b0, b2, b3, b4 = 0.0, 0.0, 0.0, 0.0
                 m3 = g * (1.0 + a3 + rb3) + b3
                 m4 = g * (1.0 + a4 + rb4) + b4
-                # turning points are tracked only while the plate moves measurably: on a
-                # still plate (Gamma 0, the armature rung down) the sign of its velocity is
-                # rounding noise and the certified steps would creep for ever
-                trk = turn and m3 > 1e-6
                 searched = False  # pb0..pb3 at the takeoff known from ride_general
                 if nh == 0 and not arm:
                     if g != g_win:  # the window depends on Gamma only: computed once per step
@@ -1248,35 +1225,15 @@ def trajectory(
                         cs_win = math.cos(lo_win)
                         g_win = g
                     pt, st = ride_window(ride_search, lim, lo_win, hi_win)
-                elif g * (1.0 + a2 + rb2) + b2 <= gd and not trk:
+                elif g * (1.0 + a2 + rb2) + b2 <= gd:
                     pt, st = lim, 2  # the plate can never out-accelerate gravity
                 else:
                     pt, st, pb0, pb1, pb2, pb3 = ride_general(
-                        phi_e if trk else ride_search, lim, g, gu, gd, hk, ha, th, arm,
-                        ay, av, aref, rl, ro, rf2, m3, m4, maxit, rpc, sig, trk, ride_search,
+                        ride_search, lim, g, gu, gd, hk, ha, th, arm, ay, av, aref,
+                        rl, ro, rf2, m3, m4, maxit, rpc,
                     )  # fmt: skip
-                    searched = st == 0 or st == 3
-                if st == 3:
-                    # a turning point of the plate: the load's friction part flips
-                    if pend:
-                        fr_ = mu * abs(pb0 - qa0)  # a segment without turning points
-                        row[rec, C_EPLATE] += 0.5 * (pb1 * pb1 - qa1 * qa1) + (pb0 - qa0) + fr_
-                        row[rec, C_EFRIC] += fr_
-                    yy, yv = ride_armature(pt, g, hk, ha, th, ay, av, aref, rl, ro, rf2, rpc)
-                    sig = -sig
-                    ay, av = ride_rebase(pt, yy, yv, g, hk, ha, th, rp_ride, load, f2, mu, sig)
-                    aref = pt
-                    phi_e = pt
-                    qa0 = pb0
-                    qa1 = pb1
-                    continue
+                    searched = st == 0
                 if st != 0 and pt < bound and k < nsteps - 1:
-                    if trk and st == 1:
-                        # no takeoff at this Gamma: ride on to the step's end with the
-                        # turning points tracked (no takeoff searched before it)
-                        ride_search = bound
-                        ride_from = bound
-                        continue
                     pt = bound  # no takeoff at this Gamma: the body rides on to the next step
                 if searched:
                     pass  # the search evaluated the plate at the takeoff
@@ -1292,9 +1249,7 @@ def trajectory(
                     )  # fmt: skip
                 if pend:
                     fr_ = 0.0
-                    if turn:
-                        fr_ = mu * abs(pb0 - qa0)  # a segment without turning points
-                    elif mu > 0.0:
+                    if mu > 0.0:
                         fr_ = mu * ride_tv(
                             phi_e, pt, g, hk, ha, th, arm, ay, av, aref, rl, ro, rf2, m3, maxit,
                             rpc,

@@ -9,7 +9,10 @@ from diag_synth import duration_s, pseudo_flights, write_run
 
 from bouncelab.gap.distances import gap_table
 from bouncelab.gap.fit import (
+    EvaluationPool,
+    FitSettings,
     align_steps,
+    fit_model,
     make_problem,
     member_model,
     member_offsets,
@@ -17,7 +20,7 @@ from bouncelab.gap.fit import (
     step_gaps,
 )
 from bouncelab.physics import Model
-from bouncelab.physics.simulate import protocol_flight_times, simulate_protocol
+from bouncelab.physics.simulate import OutputBuffer, protocol_flight_times, simulate_protocol
 from bouncelab.runs import load_run
 
 
@@ -68,3 +71,49 @@ def test_protocol_arrays_match_simulate_protocol():
         np.testing.assert_allclose(arrays["T"][mine], ref["T"].to_numpy(), rtol=0, atol=1e-9)
         np.testing.assert_array_equal(arrays["step"][mine], ref["step"].to_numpy())
         np.testing.assert_array_equal(arrays["settled"][mine], ref["settled"].to_numpy())
+
+
+def test_a_reused_output_buffer_changes_no_result():
+    """The kernel's output array kept between calls (``OutputBuffer``): each call's
+    arrays equal a fresh call's, and none shares the buffer's memory (a later call
+    must not overwrite an earlier result)."""
+    gammas, cycles = np.array([1.2, 2.2, 3.1]), np.array([15, 15, 15])
+    models = [
+        Model.parse("restitution", {"e": 0.5}),
+        Model.parse("friction", {"mu": 0.3}),
+    ]
+    buffer = OutputBuffer()
+    kept = [
+        protocol_flight_times(m, gammas, cycles, 4, (1.0, 1.0001), buffer=buffer) for m in models
+    ]
+    for m, got in zip(models, kept, strict=True):
+        fresh = protocol_flight_times(m, gammas, cycles, 4, (1.0, 1.0001))
+        assert got.keys() == fresh.keys()
+        for k in fresh:
+            np.testing.assert_array_equal(got[k], fresh[k])
+    # results own their memory: nothing of them lies in the buffer's array
+    arr = buffer.array
+    assert arr is not None
+    for got in kept:
+        for v in got.values():
+            assert not np.shares_memory(v, arr)
+
+
+def test_fit_in_an_evaluation_pool_equals_the_serial_fit(problem):
+    """A fit whose populations are evaluated by two worker processes gives the same
+    evaluations, in the same order, and the same best model as one run in-process."""
+    settings = FitSettings(popsize=4, maxiter=3, local_evals=3)
+    name = "friction+restitution"
+    serial = fit_model(problem, name, settings=settings, seed=2)
+    with EvaluationPool(problem, 2) as pool:
+        pooled = fit_model(problem, name, settings=settings, seed=2, pool=pool)
+    assert pooled.n_evals == serial.n_evals > 10
+    np.testing.assert_array_equal(pooled.cloud_x, serial.cloud_x)
+    np.testing.assert_array_equal(pooled.cloud_gaps, serial.cloud_gaps)
+    assert pooled.model.params == serial.model.params
+
+
+def test_an_evaluation_pool_serves_only_its_problem(problem):
+    other = make_problem(problem.run, problem.data_table, problem.duration_s, n_members=1)
+    with EvaluationPool(problem, 2) as pool, pytest.raises(ValueError, match="another problem"):
+        fit_model(other, "friction", pool=pool)

@@ -479,7 +479,8 @@ def diagnose_run(
         from the recording with :func:`bouncelab.flights.extract_run`.
     fix_calibration : hold ``mu`` and ``e`` at the calibration's values.
     fit_settings, select_settings : budget and stop rule.
-    workers : processes for the fits of one round (default 1; see :func:`diagnose_flights`).
+    workers : processes that evaluate the fits' populations (default 1: one process, the
+        kernels on numba's threads; see :func:`bouncelab.gap.select.evaluation_pool`).
     progress : a progress bar on stderr (default: when it is a terminal).
     include_timings : add wall-clock ``timings`` (the only non-deterministic key).
 

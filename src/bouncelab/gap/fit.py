@@ -37,7 +37,7 @@ from bouncelab.gap.distances import (
 )
 from bouncelab.gap.noise import noise_floor
 from bouncelab.physics import EFFECTS, Model
-from bouncelab.physics.simulate import protocol_flight_times
+from bouncelab.physics.simulate import OutputBuffer, protocol_flight_times
 from bouncelab.protocol import run_protocol, simulate_run
 from bouncelab.runs import Run
 
@@ -283,7 +283,7 @@ def simulate(problem: Problem, model: Model, member: int = 0) -> pd.DataFrame:
     return sim.loc[sim["T"].to_numpy(dtype=float) >= problem.min_T].reset_index(drop=True)
 
 
-def step_gaps(problem: Problem, model: Model) -> np.ndarray:
+def step_gaps(problem: Problem, model: Model, buffer: OutputBuffer | None = None) -> np.ndarray:
     """Per-step gap (rad) of ``model`` against the data, ndarray shape (G,) in step order
     of ``problem.steps``: the least over the ``problem.n_members`` ensemble members.
 
@@ -298,7 +298,7 @@ def step_gaps(problem: Problem, model: Model) -> np.ndarray:
 
     The same numbers as :func:`bouncelab.gap.distances.gap_table` of :func:`simulate`
     per member, computed from the kernel's arrays without DataFrames (the inner loop of
-    every fit).
+    every fit). ``buffer``: the simulation's output array kept between calls.
     """
     proto = problem.protocol
     sim = protocol_flight_times(
@@ -308,6 +308,7 @@ def step_gaps(problem: Problem, model: Model) -> np.ndarray:
         settle_cycles=int(problem.run.settle_cycles),
         gamma_factors=1.0 + member_offsets(max(1, problem.n_members)),
         chatter_eps=resolution_T(problem.run, CHATTER_SAMPLES),
+        buffer=buffer,
     )
     keep = sim["T"] >= problem.min_T
     member, step_idx, t, settled = (sim[k][keep] for k in ("member", "step", "T", "settled"))
@@ -400,29 +401,118 @@ class FitResult:
     extra: dict = field(default_factory=dict)
 
 
-class _Evaluator:
-    """Objective with a record of every evaluation (vector and per-step gaps)."""
+# The problem and output buffer of an EvaluationPool's worker process, set once when it
+# starts (:func:`_worker_start`): a worker serves one problem for its whole life.
+_WORKER: dict = {}
 
-    def __init__(self, problem: Problem, model_name: str, base: dict, free: list[FreeParam]):
+
+def _worker_start(problem: Problem) -> None:
+    import numba
+
+    # the processes are the parallelism: kernels on two threads each would oversubscribe
+    numba.set_num_threads(1)
+    _WORKER.update(problem=problem, buffer=OutputBuffer())
+
+
+def _worker_gaps(model_name: str, params: dict) -> np.ndarray:
+    return step_gaps(_WORKER["problem"], Model.parse(model_name, params), _WORKER["buffer"])
+
+
+class EvaluationPool:
+    """Processes that evaluate the models of one generation of a fit in parallel.
+
+    Every worker receives ``problem`` once, when it starts; a task is one model (name and
+    parameters), its result the per-step gaps (:func:`step_gaps`), the same numbers as
+    in the calling process (each simulation depends only on its own inputs). Why the
+    population and not whole fits in parallel: one feedback fit costs as much as all the
+    other candidates of a round together, and fits in parallel then wait for it.
+
+    Started with ``spawn``, not ``fork``: the physics kernels use numba's thread pool,
+    which is not safe to fork once started. Use as a context manager.
+    """
+
+    def __init__(self, problem: Problem, workers: int):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.problem = problem
+        self.workers = int(workers)
+        self._executor = ProcessPoolExecutor(
+            max_workers=self.workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_worker_start,
+            initargs=(problem,),
+        )
+
+    def gaps(self, model_name: str, params: list[dict]) -> list[np.ndarray]:
+        """Per-step gaps (each ndarray (G,), rad) of ``model_name`` at each parameter dict."""
+        names = [model_name] * len(params)
+        return list(self._executor.map(_worker_gaps, names, params))
+
+    def close(self) -> None:
+        self._executor.shutdown()
+
+    def __enter__(self) -> EvaluationPool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class _Evaluator:
+    """Objective with a record of every evaluation (vector and per-step gaps).
+
+    :meth:`many` evaluates a whole population, in ``pool`` when given; evaluations are
+    recorded in the order of the population, as one by one, so a fit's result does not
+    depend on the pool.
+    """
+
+    def __init__(
+        self,
+        problem: Problem,
+        model_name: str,
+        base: dict,
+        free: list[FreeParam],
+        pool: EvaluationPool | None = None,
+    ):
+        if pool is not None and pool.problem is not problem:
+            raise ValueError("the evaluation pool serves another problem")
         self.problem, self.model_name, self.base, self.free = problem, model_name, base, free
+        self.pool = pool
         self.xs: list[np.ndarray] = []
         self.gaps: list[np.ndarray] = []
         self._cache: dict[tuple, float] = {}
+        self._buffer = OutputBuffer()
 
     def model(self, x) -> Model:
         return Model.parse(self.model_name, {**self.base, **decode(self.free, x)})
 
+    def many(self, xs) -> list[float]:
+        """Objective values of the optimiser vectors ``xs``; each new one is recorded."""
+        keyed = []
+        todo: dict[tuple, dict] = {}  # first occurrence of each new parameter set, in order
+        for x in xs:
+            params = decode(self.free, x)
+            key = tuple(sorted(params.items()))
+            keyed.append(key)
+            if key not in self._cache and key not in todo:  # DE re-proposes the same k often
+                todo[key] = params
+        full = [{**self.base, **p} for p in todo.values()]
+        if self.pool is not None and len(full) > 1:
+            gaps = self.pool.gaps(self.model_name, full)
+        else:
+            gaps = [
+                step_gaps(self.problem, Model.parse(self.model_name, p), self._buffer) for p in full
+            ]
+        for (key, params), g in zip(todo.items(), gaps, strict=True):
+            self.xs.append(encode(self.free, params))
+            self.gaps.append(g)
+            fit = self.problem.fit
+            self._cache[key] = self.problem.mean(g, fit) if fit.any() else 0.0
+        return [self._cache[key] for key in keyed]
+
     def __call__(self, x) -> float:
-        params = decode(self.free, x)
-        key = tuple(sorted(params.items()))
-        if key in self._cache:  # DE re-proposes the same discrete k often
-            return self._cache[key]
-        g = step_gaps(self.problem, self.model(x))
-        self.xs.append(encode(self.free, params))
-        self.gaps.append(g)
-        value = self.problem.mean(g, self.problem.fit) if self.problem.fit.any() else 0.0
-        self._cache[key] = value
-        return value
+        return self.many([x])[0]
 
 
 def fit_model(
@@ -434,6 +524,7 @@ def fit_model(
     search: tuple[str, ...] | None = None,
     settings: FitSettings | None = None,
     seed: int = 0,
+    pool: EvaluationPool | None = None,
 ) -> FitResult:
     """Refit ``model_name``'s parameters to the run (see the module docstring).
 
@@ -450,6 +541,8 @@ def fit_model(
         refines all together.
     settings : budget, see :class:`FitSettings`.
     seed : seed of the optimiser (the simulation's seed is ``problem.seed``).
+    pool : processes that evaluate each generation of the global search in parallel
+        (:class:`EvaluationPool` of this ``problem``); the result does not depend on it.
 
     Returns
     -------
@@ -462,21 +555,26 @@ def fit_model(
     fixed = {k: float(v) for k, v in (fixed or {}).items() if k in proto.params}
     free = free_params(proto.effects, fixed)
     start = {**_defaults(free), **(base or {})}
-    ev = _Evaluator(problem, model_name, fixed, free)
+    ev = _Evaluator(problem, model_name, fixed, free, pool)
     x = encode(free, start)
     names = [p.name for p in free]
     glob = [i for i, n in enumerate(names) if search is None or n in search]
-    popsize, maxiter = settings.popsize, settings.maxiter
-    if "feedback" in proto.effects:
-        popsize += settings.feedback_extra_popsize
-        maxiter *= settings.feedback_maxiter_factor
+    popsize, maxiter = search_budget(proto.effects, settings)
     if glob:
         sub = [free[i] for i in glob]
 
-        def objective(z):
+        def lift(z):
             y = x.copy()
             y[glob] = z
-            return ev(y)
+            return y
+
+        def objective(z):
+            return ev(lift(z))
+
+        def population_map(_func, zs):
+            # scipy's map-like ``workers``: the values of ``objective`` over the population
+            # (``_func`` wraps it), evaluated together so that a pool can share them out
+            return ev.many([lift(z) for z in zs])
 
         de = differential_evolution(
             objective,
@@ -490,6 +588,7 @@ def fit_model(
             x0=x[glob],
             integrality=[p.choices is not None for p in sub],
             updating="deferred",
+            workers=population_map,
         )
         x[glob] = de.x
     if free:
@@ -512,6 +611,16 @@ def fit_model(
         n_evals=len(ev.xs),
         seconds=time.perf_counter() - t0,
     )
+
+
+def search_budget(effects, settings: FitSettings) -> tuple[int, int]:
+    """Differential evolution's ``(popsize per parameter, maxiter)`` for a model of
+    ``effects`` (larger with ``feedback``, see :class:`FitSettings`)."""
+    popsize, maxiter = settings.popsize, settings.maxiter
+    if "feedback" in effects:
+        popsize += settings.feedback_extra_popsize
+        maxiter *= settings.feedback_maxiter_factor
+    return popsize, maxiter
 
 
 def _defaults(free: list[FreeParam]) -> dict:

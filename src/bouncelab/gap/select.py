@@ -22,14 +22,13 @@ the noise floor is the same mean of the data's own floor.
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
 import sys
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 from bouncelab.gap.fit import (
     K_CHOICES,
     RIDE_LOAD_CHOICES,
+    EvaluationPool,
     FitResult,
     FitSettings,
     Problem,
@@ -95,49 +94,44 @@ def heldout_gap(fit: FitResult, problem: Problem) -> float:
     return problem.mean(fit.gaps, problem.heldout)
 
 
-def _fit_job(args) -> FitResult:
-    problem, name, base, fixed, search, settings, seed = args
-    return fit_model(problem, name, base, fixed=fixed, search=search, settings=settings, seed=seed)
-
-
-def process_pool(workers: int):
-    """A pool of ``workers`` processes for the fits, or a null context for one worker.
-
-    Started with ``spawn``, not ``fork``: the physics kernels use numba's OpenMP thread
-    pool, which is not safe to fork once started. One pool serves every round, so the
-    workers import and load the compiled kernels once.
-    """
+def evaluation_pool(problem: Problem, workers: int):
+    """An :class:`bouncelab.gap.fit.EvaluationPool` of ``workers`` processes for the fits
+    of ``problem``, or a null context for one worker (the kernels then use numba's
+    threads for the ensemble members). One pool serves every round, so the workers
+    import and load the compiled kernels once."""
     if workers <= 1:
         return contextlib.nullcontext(None)
-    ctx = multiprocessing.get_context("spawn")
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    return EvaluationPool(problem, workers)
 
 
 def fit_many(jobs: list[tuple], pool=None, progress: bool | None = None) -> list[FitResult]:
-    """Run :func:`fit_model` jobs (argument tuples), in ``pool`` when given.
-
-    Results come back in job order and do not depend on the pool (each fit is seeded).
+    """Run :func:`fit_model` jobs (argument tuples ``(problem, model_name, base, fixed,
+    search, settings, seed)``) one after another, each evaluating its populations in
+    ``pool`` when given. Results come back in job order and do not depend on the pool.
     A progress bar is shown on a terminal (``progress=None``: when stderr is a TTY).
     """
     from tqdm import tqdm
 
     if progress is None:
         progress = sys.stderr.isatty()
-    bar = tqdm(total=len(jobs), desc="fits", unit="fit", disable=not progress, leave=False)
-    try:
-        if pool is not None and len(jobs) > 1:
-            futures = [pool.submit(_fit_job, job) for job in jobs]
-            for fut in as_completed(futures):
-                fut.result()  # re-raise a worker's error at once
-                bar.update()
-            return [fut.result() for fut in futures]
-        results = []
-        for job in jobs:
-            results.append(_fit_job(job))
+    results = []
+    with tqdm(total=len(jobs), desc="fits", unit="fit", disable=not progress, leave=False) as bar:
+        for problem, name, base, fixed, search, settings, seed in jobs:
+            results.append(
+                fit_model(
+                    problem,
+                    name,
+                    base,
+                    fixed=fixed,
+                    search=search,
+                    settings=settings,
+                    seed=seed,
+                    pool=pool,
+                )
+            )
+            bar.set_postfix_str(name, refresh=False)
             bar.update()
-        return results
-    finally:
-        bar.close()
+    return results
 
 
 def _discrete_splits(effect: str, fixed: dict, chosen: dict | None = None) -> list[dict]:
@@ -194,7 +188,7 @@ def forward_select(
     base_params : starting values of parameters (e.g. of the baseline).
     fixed : parameters held at these values in every fit (e.g. ``--fix-calibration``).
     seed : seed of the optimisers.
-    workers : processes for the fits of one round.
+    workers : processes that evaluate each generation of a fit (:func:`evaluation_pool`).
 
     Returns
     -------
@@ -208,7 +202,7 @@ def forward_select(
     fixed = dict(fixed or {})
     base_model = Model.parse(baseline)
     start = {**(base_params or {})}
-    with process_pool(workers) as pool:
+    with evaluation_pool(problem, workers) as pool:
         (base_fit,) = fit_many(
             [(problem, base_model.name, start, fixed, None, fit_settings, seed)], None, progress
         )

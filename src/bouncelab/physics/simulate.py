@@ -255,6 +255,30 @@ def _protocol_steps(gammas, cycles, settle_cycles) -> tuple[np.ndarray, np.ndarr
     return g, np.cumsum(cyc.astype(np.int64))
 
 
+class OutputBuffer:
+    """The kernel's output array, kept between calls of :func:`protocol_flight_times`.
+
+    Why: the array has room for every flight chatter could make (about 140 MB for a long
+    sweep run's ensemble); a fresh one per call maps its pages anew, and those page
+    faults took a third of a fit's evaluation. One buffer per caller (e.g. per fit), not
+    a module global, so that callers in threads or processes never share one.
+    """
+
+    def __init__(self) -> None:
+        self._array: np.ndarray | None = None
+
+    @property
+    def array(self) -> np.ndarray | None:
+        """The array kept (None before the first call)."""
+        return self._array
+
+    def get(self, shape: tuple[int, int]) -> np.ndarray:
+        """An uninitialised float64 array of ``shape``, the same one while the shape holds."""
+        if self._array is None or self._array.shape != shape:
+            self._array = np.empty(shape)
+        return self._array
+
+
 def protocol_flight_times(
     model: Model,
     gammas,
@@ -262,6 +286,7 @@ def protocol_flight_times(
     settle_cycles: int = 10,
     gamma_factors=(1.0,),
     chatter_eps: float = CHATTER_EPS,
+    buffer: OutputBuffer | None = None,
 ) -> dict[str, np.ndarray]:
     """The lab protocol for an ensemble whose members' true Gamma is scaled, as arrays.
 
@@ -271,7 +296,8 @@ def protocol_flight_times(
     without building a DataFrame. All members run in one parallel kernel call.
     ``chatter_eps`` (rad) ends a chatter sequence once its predicted flight is shorter
     (default :data:`CHATTER_EPS`); a caller that cannot resolve such flights may raise
-    it to save the kernel the long geometric tails.
+    it to save the kernel the long geometric tails. ``buffer`` keeps the kernel's
+    output array between calls (:class:`OutputBuffer`); the results never share its memory.
 
     Returns
     -------
@@ -290,8 +316,9 @@ def protocol_flight_times(
     # room for chatter at once: np.empty only maps pages, so unwritten room costs nothing,
     # while a rerun after a full buffer costs a whole simulation
     max_rec = int(32 * step_end[-1] + 64)
+    buffer = buffer or OutputBuffer()
     while True:
-        out = np.empty((K.NCOL, ns * max_rec))
+        out = buffer.get((K.NCOL, ns * max_rec))
         rows, status = K.run_many(
             par, hk, ha, hp, g_tr, g_st, step_end, True, np.zeros(ns),
             np.zeros(ns), np.zeros(ns), 0, max_rec, int(settle_cycles),
@@ -300,15 +327,16 @@ def protocol_flight_times(
         if not np.any(status == K.ST_FULL):
             break
         max_rec *= 4
-    keep = _written(rows, max_rec)
+    # the written rows of each member's block, by index (fancy indexing copies them out
+    # of the buffer)
+    keep = np.concatenate([np.arange(i * max_rec, i * max_rec + r) for i, r in enumerate(rows)])
     cols = {
         "member": (K.C_START, np.int64),
         "step": (K.C_STEP, np.int64),
         "T": (K.C_T, np.float64),
     }
-    res = {k: (out[c] if keep is None else out[c][keep]).astype(t) for k, (c, t) in cols.items()}
-    settled = out[K.C_SETTLED] if keep is None else out[K.C_SETTLED][keep]
-    res["settled"] = settled > 0.5
+    res = {k: out[c][keep].astype(t) for k, (c, t) in cols.items()}
+    res["settled"] = out[K.C_SETTLED][keep] > 0.5
     return res
 
 

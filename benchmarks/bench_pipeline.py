@@ -56,6 +56,31 @@ def finished_jobs(output: str) -> int:
     return len(re.findall(r"^Finished jobid: ", output, re.M))
 
 
+def slowest_jobs(output: str, n: int = 8) -> dict[str, float]:
+    """Wall seconds (1 s resolution) of the ``n`` slowest jobs of a snakemake run, from the
+    time stamps of its output (job start: the stamp before ``rule NAME:``; end: the stamp
+    before ``Finished jobid: N``). Keys: ``rule`` or ``rule[wildcards]``."""
+    from datetime import datetime
+
+    stamp, rule, job = None, None, None
+    started, names, times = {}, {}, {}
+    for line in output.splitlines():
+        if m := re.match(r"^\[(\w{3} \w{3} +\d+ [\d:]+ \d{4})\]$", line):
+            stamp = datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y")
+        elif m := re.match(r"^(?:local)?rule (\w+):$", line):
+            rule, job = m.group(1), None
+        elif (m := re.match(r"^    jobid: (\d+)$", line)) and rule is not None:
+            job = m.group(1)
+            names[job], started[job] = rule, stamp
+        elif (m := re.match(r"^    wildcards: (.*)$", line)) and job is not None:
+            names[job] = f"{rule}[{m.group(1)}]"
+        elif (m := re.match(r"^Finished jobid: (\d+)", line)) and m.group(1) in started:
+            times[names[m.group(1)]] = (stamp - started[m.group(1)]).total_seconds()
+            rule = job = None
+    top = sorted(times.items(), key=lambda kv: -kv[1])[:n]
+    return dict(top)
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp) / "project"
@@ -63,6 +88,7 @@ def main() -> None:
         copy_project(work)
         full_s, out = timed_snakemake(work)
         full_jobs = finished_jobs(out)
+        slowest = slowest_jobs(out)
         noop_s, out = timed_snakemake(work)
         assert "Nothing to be done" in out, out[-2000:]
         shutil.copytree(work / "raw" / "accel_g2-4", work / "raw" / "dropped_in")
@@ -72,6 +98,7 @@ def main() -> None:
     result = {
         "full_run_s": round(full_s, 1),
         "full_run_jobs": full_jobs,
+        "full_run_slowest_jobs_s": slowest,
         "noop_rerun_s": round(noop_s, 2),
         "dropped_in_run_s": round(drop_s, 1),
         "dropped_in_foreign_jobs": others,

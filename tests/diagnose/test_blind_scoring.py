@@ -10,6 +10,7 @@ import pytest
 from bouncelab.gap.blind import (
     LABELS,
     deep_merge,
+    interval_hits,
     load_cases,
     relative_errors,
     score_case,
@@ -74,6 +75,20 @@ def test_summary_counts():
     assert (s["n_null"], s["null_false_alarms"]) == (1, 1)
     assert (s["n_outside"], s["outside_flagged"]) == (1, 1)
     assert s["param_errors"] == {"friction.mu": [pytest.approx(0.05)]}
+
+
+def test_interval_hits_and_their_count():
+    """mu 0.2 inside [0.15, 0.25], e 0.5 outside [0.3, 0.45]; psi 0.05 inside the interval
+    [6.2, 6.4] that wraps past 2 pi (6.33 = 0.05 + 2 pi)."""
+    hits = interval_hits(
+        {"mu": 0.2, "e": 0.5, "psi": 0.05},
+        {"mu": [0.15, 0.25], "e": [0.3, 0.45], "psi": [6.2, 6.4]},
+    )
+    assert hits == {"mu": True, "e": False, "psi": True}
+    diag = _diag(["friction"], {"mu": 0.21})
+    diag["steps"] = [{"params_ci": {"mu": [0.15, 0.19]}}]
+    s = summarize({"f": score_case(diag, _truth(mu=0.2))})
+    assert (s["n_params_in_interval"], s["n_params_scored"]) == (0, 1)
 
 
 def test_case_file_merges_over_base():

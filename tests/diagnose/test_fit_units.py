@@ -20,6 +20,8 @@ from bouncelab.gap.fit import (
     free_params,
     heldout_mask,
     intervals,
+    noise_intervals,
+    poorly_identified,
 )
 from bouncelab.physics import EFFECTS, Model
 
@@ -94,6 +96,25 @@ def test_bootstrap_spreads_when_steps_disagree():
     fit = _fake_fit([0.1, 0.3], gaps)
     boot = bootstrap_params(fit, _P(4), n_boot=400, seed=2)
     assert intervals(fit, boot)["mu"] == [0.1, 0.3]
+
+
+def test_noise_interval_spans_the_evaluations_within_the_tolerance():
+    """Cloud of mean objectives 0.10 (mu 0.2), 0.14 (mu 0.3), 0.25 (mu 0.1), 0.5 (mu 0.4):
+    a tolerance of 0.05 keeps mu 0.2 and 0.3, of 0.2 also 0.1, of 0 only the best."""
+    gaps = [[0.25, 0.25], [0.1, 0.1], [0.14, 0.14], [0.5, 0.5]]
+    fit = _fake_fit([0.1, 0.2, 0.3, 0.4], gaps)
+    assert noise_intervals(fit, _P(2), 0.05)["mu"] == [0.2, 0.3]
+    assert noise_intervals(fit, _P(2), 0.2)["mu"] == [0.1, 0.3]
+    assert noise_intervals(fit, _P(2), 0.0)["mu"] == [0.2, 0.2]
+
+
+def test_poorly_identified_warns_on_wide_intervals_only():
+    """mu = 0.2 with [0.15, 0.3]: width 0.15 = 75 % of the value, warned; with
+    [0.19, 0.21] (10 %) not; a discrete parameter never."""
+    fit = _fake_fit([0.1, 0.2], [[0.5, 0.5], [0.1, 0.1]])
+    assert len(poorly_identified(fit, {"mu": [0.15, 0.3]})) == 1
+    assert "mu" in poorly_identified(fit, {"mu": [0.15, 0.3]})[0]
+    assert poorly_identified(fit, {"mu": [0.19, 0.21]}) == []
 
 
 def test_warnings_on_bound_and_trade_off():

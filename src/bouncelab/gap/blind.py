@@ -141,6 +141,23 @@ def relative_errors(true: dict, fitted: dict) -> dict:
     return out
 
 
+def interval_hits(true: dict, ci: dict) -> dict:
+    """``{name: bool}``: whether each true parameter lies in the diagnosis's interval
+    (psi: on the circle). Parameters without an interval are left out."""
+    out = {}
+    for name, t in true.items():
+        if name not in ci:
+            continue
+        lo, hi = (float(v) for v in ci[name])
+        if name == "psi":
+            half = (hi - lo) / 2.0
+            mid = (hi + lo) / 2.0
+            out[name] = bool(abs((t - mid + np.pi) % (2 * np.pi) - np.pi) <= half)
+        else:
+            out[name] = bool(lo <= t <= hi)
+    return out
+
+
 def score_case(diagnosis: dict, truth_params: dict) -> dict:
     """Compare a diagnosis with the truth of its case (read only here).
 
@@ -150,7 +167,8 @@ def score_case(diagnosis: dict, truth_params: dict) -> dict:
     effect is the true one), ``set_right`` (the selected set equals the true set),
     ``unexplained``, ``false_alarm`` (null cases: anything selected or unexplained),
     ``flagged`` (outside cases: unexplained), ``param_errors`` (relative errors of the
-    true effects' parameters that the final model fitted).
+    true effects' parameters that the final model fitted), ``param_in_interval``
+    (whether each of them lies in the last accepted step's interval).
     """
     lib, outside = true_effects(truth_params)
     selected = list(diagnosis["selected"])
@@ -164,10 +182,13 @@ def score_case(diagnosis: dict, truth_params: dict) -> dict:
     else:
         kind = "combination"
     fitted = diagnosis.get("final_model", {}).get("params", {})
-    errors = {}
+    steps = diagnosis.get("steps") or []
+    ci = steps[-1].get("params_ci", {}) if steps else {}
+    errors, hits = {}, {}
     for eff, params in lib.items():
         if eff in selected:
             errors[eff] = relative_errors(params, fitted)
+            hits[eff] = interval_hits(params, ci)
     out = {
         "true": sorted(lib),
         "true_params": lib,
@@ -178,6 +199,7 @@ def score_case(diagnosis: dict, truth_params: dict) -> dict:
         "set_right": sorted(selected) == sorted(lib),
         "unexplained": bool(diagnosis["unexplained"]),
         "param_errors": errors,
+        "param_in_interval": hits,
         "fitted_params": fitted,
     }
     if kind == "single":
@@ -203,6 +225,7 @@ def summarize(scores: dict[str, dict]) -> dict:
     singles = nulls = outs = 0
     top_right = false_alarms = flagged = 0
     errs: dict[str, list[float]] = {}
+    hits: list[bool] = []
     for sc in scores.values():
         if sc["kind"] in ("single", "null"):
             t = sc["true"][0] if sc["true"] else "none"
@@ -223,6 +246,8 @@ def summarize(scores: dict[str, dict]) -> dict:
                 if eff == "harmonic" and name == "k":
                     continue  # a discrete choice: right or wrong, counted below
                 errs.setdefault(f"{eff}.{name}", []).append(v)
+        for eff, ph in sc.get("param_in_interval", {}).items():
+            hits += [h for name, h in ph.items() if not (eff == "harmonic" and name == "k")]
     all_err = [v for vs in errs.values() for v in vs]
     within = float(np.mean(np.asarray(all_err) <= GOALS["param_rel_error"])) if all_err else None
     return {
@@ -236,6 +261,8 @@ def summarize(scores: dict[str, dict]) -> dict:
         "outside_flagged": flagged,
         "param_errors": {k: sorted(v) for k, v in sorted(errs.items())},
         "param_within_goal": within,
+        "n_params_in_interval": int(sum(hits)),
+        "n_params_scored": len(hits),
         "combinations": {
             name: {"true": sc["true"], "selected": sc["selected"], "set_right": sc["set_right"]}
             for name, sc in scores.items()

@@ -77,6 +77,18 @@ MEMBER_SPREAD = 1e-4
 #: what the recording resolves, and 1.6 times fewer kernel flights for restitution models.
 CHATTER_SAMPLES = 0.02
 
+#: Fresh ensembles drawn at the best parameters to measure the objective's own noise
+#: (:func:`objective_noise`).
+NOISE_DRAWS = 4
+
+#: Evaluations whose fit-step objective lies within this many noise standard deviations
+#: of the best are consistent with the data (:func:`noise_intervals`).
+NOISE_SIGMAS = 2.0
+
+#: An interval wider than this share of its parameter's value (lower to upper end) gets
+#: a warning (:func:`poorly_identified`): twice the 15 % of issue 6's recovery goal.
+WIDE_SHARE = 0.3
+
 #: A step's gap counts at most this many of its noise floors in every mean over steps
 #: (:meth:`Problem.clipped`).
 GAP_CAP = 10.0
@@ -283,7 +295,9 @@ def simulate(problem: Problem, model: Model, member: int = 0) -> pd.DataFrame:
     return sim.loc[sim["T"].to_numpy(dtype=float) >= problem.min_T].reset_index(drop=True)
 
 
-def step_gaps(problem: Problem, model: Model, buffer: OutputBuffer | None = None) -> np.ndarray:
+def step_gaps(
+    problem: Problem, model: Model, buffer: OutputBuffer | None = None, shift: float = 0.0
+) -> np.ndarray:
     """Per-step gap (rad) of ``model`` against the data, ndarray shape (G,) in step order
     of ``problem.steps``: the least over the ``problem.n_members`` ensemble members.
 
@@ -299,6 +313,8 @@ def step_gaps(problem: Problem, model: Model, buffer: OutputBuffer | None = None
     The same numbers as :func:`bouncelab.gap.distances.gap_table` of :func:`simulate`
     per member, computed from the kernel's arrays without DataFrames (the inner loop of
     every fit). ``buffer``: the simulation's output array kept between calls.
+    ``shift`` moves every member's Gamma offset by ``shift * MEMBER_SPREAD``: a fresh
+    ensemble, another draw of the multistable lottery (:func:`objective_noise`).
     """
     proto = problem.protocol
     sim = protocol_flight_times(
@@ -306,7 +322,7 @@ def step_gaps(problem: Problem, model: Model, buffer: OutputBuffer | None = None
         proto["gamma"].to_numpy(),
         proto["cycles"].to_numpy(),
         settle_cycles=int(problem.run.settle_cycles),
-        gamma_factors=1.0 + member_offsets(max(1, problem.n_members)),
+        gamma_factors=1.0 + member_offsets(max(1, problem.n_members)) + shift * MEMBER_SPREAD,
         chatter_eps=resolution_T(problem.run, CHATTER_SAMPLES),
         buffer=buffer,
     )
@@ -694,6 +710,60 @@ def bootstrap_params(
     best = np.argmin(values, axis=1)
     decoded = np.array([list(decode(fit.free, x).values()) for x in fit.cloud_x])
     return decoded[best]
+
+
+def objective_noise(fit: FitResult, problem: Problem, draws: int = NOISE_DRAWS) -> float:
+    """Standard deviation (rad) of the fit-step objective at the best parameters over
+    ``draws`` fresh ensembles (member offsets shifted by ``k / (draws + 1)`` of
+    :data:`MEMBER_SPREAD`, :func:`step_gaps`).
+
+    The objective's own noise: which of coexisting orbits the members settle on after a
+    chaotic stretch is a lottery, so the same parameters score differently with another
+    ensemble. The best evaluation of a fit is the luckiest draw among hundreds; parameters
+    whose objective lies within this noise of it cannot be told apart by the data.
+    0 for fewer than two draws or no fit steps.
+    """
+    if draws < 2 or not problem.fit.any():
+        return 0.0
+    buffer = OutputBuffer()
+    values = [
+        problem.mean(step_gaps(problem, fit.model, buffer, shift=k / (draws + 1)), problem.fit)
+        for k in range(1, draws + 1)
+    ]
+    return float(np.std(values, ddof=1))
+
+
+def noise_intervals(fit: FitResult, problem: Problem, tolerance: float) -> dict:
+    """``{name: [lo, hi]}``: the range of each fitted parameter over the evaluations whose
+    fit-step objective lies within ``tolerance`` (rad) of the best (a profile-like set;
+    always holds the best value)."""
+    if len(fit.free) == 0 or len(fit.cloud_x) == 0:
+        return {}
+    w = problem.weights * problem.fit
+    if not w.any():
+        return {p.name: [float(fit.model.params[p.name])] * 2 for p in fit.free}
+    values = problem.clipped(fit.cloud_gaps) @ w / w.sum()
+    near = values <= fit.objective + tolerance
+    decoded = np.array([list(decode(fit.free, x).values()) for x in fit.cloud_x[near]])
+    out = {}
+    for j, p in enumerate(fit.free):
+        best = float(fit.model.params[p.name])
+        out[p.name] = [float(min(decoded[:, j].min(), best)), float(max(decoded[:, j].max(), best))]
+    return out
+
+
+def poorly_identified(fit: FitResult, ci: dict, share: float = WIDE_SHARE) -> list[str]:
+    """Warnings for continuous parameters whose interval spans more than ``share`` of
+    the fitted value (both sides together): the data leave them loose."""
+    out = []
+    for p in fit.free:
+        if p.choices is not None or p.name in PERIODIC or p.name not in ci:
+            continue
+        v = float(fit.model.params[p.name])
+        lo, hi = ci[p.name]
+        if hi - lo > share * max(abs(v), 1e-12):
+            out.append(f"{p.name}={v:.4g} is poorly identified: interval {lo:.4g} to {hi:.4g}")
+    return out
 
 
 def intervals(fit: FitResult, boot: np.ndarray, level: float = 0.95) -> dict:

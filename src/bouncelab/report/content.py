@@ -361,6 +361,9 @@ def blind_validation_blocks(results: Path, captions: Path) -> list[dict]:
         row("out-of-library cases flagged unexplained",
             lambda m: f"{m.get('outside_flagged')} of {m.get('n_outside')}", "all"),
         row("parameters within 15 %", lambda m: fmt(m.get("param_within_goal")), "1"),
+        row("true parameters inside the reported interval",
+            lambda m: f"{m.get('n_params_in_interval', '-')} of {m.get('n_params_scored', '-')}",
+            "-"),
     ]  # fmt: skip
 
     def errors(m, name):

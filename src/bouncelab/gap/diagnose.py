@@ -241,14 +241,6 @@ def diagnose_flights(
     fixed: dict = {}
     if calibration is not None and fix_calibration:
         fixed = {p: float(calibration[k]) for k, p in CALIBRATION_PARAMS.items()}
-
-    def phases_agree(fit: FitResult) -> bool:
-        cmp = compare_features(
-            problem.data_table, simulate(problem, fit.model), steps=problem.steps
-        )
-        mean = sharp_phase_offset(problem, cmp)["mean"]
-        return mean is None or abs(mean) <= PHASE_TOL
-
     sel = forward_select(
         problem,
         floor,
@@ -260,7 +252,6 @@ def diagnose_flights(
         seed=seed,
         workers=workers,
         progress=progress,
-        phases_agree=phases_agree,
     )
     base_fit: FitResult = sel["baseline"]
     g_base = heldout_gap(base_fit, problem)

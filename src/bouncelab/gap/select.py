@@ -14,8 +14,7 @@ smallest held-out gap (the one with the fewest parameters among those tied with 
 - by at least ``min_shrink`` of the current gap,
 
 and selection stops when no addition passes, when the current gap is already within
-``explained_ratio`` noise floors (and the model's takeoff phases agree with the data's,
-when the caller can check them), or after ``max_effects`` effects. All gaps here are
+``explained_ratio`` noise floors, or after ``max_effects`` effects. All gaps here are
 weighted means over held-out steps in radians (:meth:`bouncelab.gap.fit.Problem.mean`);
 the noise floor is the same mean of the data's own floor.
 """
@@ -177,7 +176,6 @@ def forward_select(
     seed: int = 0,
     workers: int = 1,
     progress: bool | None = None,
-    phases_agree=None,
 ) -> dict:
     """Forward selection from ``baseline`` over ``candidates`` (see the module docstring).
 
@@ -191,11 +189,6 @@ def forward_select(
     fixed : parameters held at these values in every fit (e.g. ``--fix-calibration``).
     seed : seed of the optimisers.
     workers : processes that evaluate each generation of a fit (:func:`evaluation_pool`).
-    phases_agree : optional check ``FitResult -> bool`` of the current model's takeoff
-        phases. A model within ``explained_ratio`` floors whose phases disagree is not
-        explained: selection goes on (an added effect must still pass the margin). Why:
-        on the blind case ``seed_like`` restitution with a feedback armature came within
-        1.9 floors while its takeoff phases stayed 0.5 rad off, the friction it lacked.
 
     Returns
     -------
@@ -220,8 +213,6 @@ def forward_select(
         while len(accepted) < settings.max_effects:
             g_cur = heldout_gap(current, problem)
             within = g_cur <= settings.explained_ratio * floor
-            if within and phases_agree is not None:
-                within = bool(phases_agree(current))
             if within and rounds:
                 stop = "within_floor"
                 break

@@ -53,22 +53,6 @@ def test_encode_decode_round_trip():
     assert back == {"k": 2.0, "a": 0.2, "psi": 1.0, "s": 0.95}
 
 
-def test_armature_scales_are_searched_on_a_log_scale():
-    """mass_ratio, f_ratio, zeta: the search coordinate is the log of the value (0.04 ->
-    log 0.04), the search bounds are the logs of the least searched value and the upper
-    bound, and decoding returns the value; mu stays linear."""
-    free = free_params(("friction", "feedback"), fixed={"ride_load": 1.0})
-    by = {p.name: p for p in free}
-    x = encode(free, {"mu": 0.2, "mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.03})
-    assert x[0] == 0.2 and x[1] == pytest.approx(np.log(0.04))
-    assert by["mass_ratio"].search_bounds() == pytest.approx((np.log(1e-3), np.log(0.5)))
-    assert by["zeta"].search_bounds() == pytest.approx((np.log(0.01), np.log(1.0)))
-    back = decode(free, x)
-    assert back == pytest.approx({"mu": 0.2, "mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.03})
-    # a value below the log scale's floor is searched from the floor
-    assert decode(free, encode(free, {**back, "mass_ratio": 0.0}))["mass_ratio"] == pytest.approx(1e-3)
-
-
 def _fake_fit(xs, gaps, names=("mu",)):
     """A FitResult on a known cloud of evaluations (no simulation)."""
     free = free_params(("friction", "gamma_scale"))

@@ -132,49 +132,14 @@ class FitSettings:
     feedback_maxiter_factor: int = 2
 
 
-#: Parameters searched on a log scale, with the least value searched: the armature's
-#: scales, whose plausible values span decades. On a linear scale a light armature
-#: (mass_ratio 0.04 of 0-0.5, zeta 0.04 of 0.01-1) is a sliver of the range that a
-#: population of 24 seldom samples: on the blind case ``seed_like_b`` four optimiser seeds
-#: ended 0.6-0.8 noise floors above the truth's objective.
-LOG_SEARCH = {"mass_ratio": 1e-3, "f_ratio": 0.05, "zeta": 0.01}
-
-
 @dataclass(frozen=True)
 class FreeParam:
-    """One fitted parameter: its bounds, or a discrete set of values (``choices``).
-
-    The optimisers work in a search coordinate: the value itself, the index of a choice,
-    or the log of the value for the names of :data:`LOG_SEARCH`.
-    """
+    """One fitted parameter: its bounds, or a discrete set of values (``choices``)."""
 
     name: str
     lower: float
     upper: float
     choices: tuple[float, ...] | None = None
-
-    @property
-    def log(self) -> bool:
-        return self.choices is None and self.name in LOG_SEARCH
-
-    @property
-    def least(self) -> float:
-        """Least value searched (the lower bound, or the log scale's floor)."""
-        return max(self.lower, LOG_SEARCH[self.name]) if self.log else self.lower
-
-    def search_bounds(self) -> tuple[float, float]:
-        """Bounds of the search coordinate."""
-        if self.log:
-            return math.log(self.least), math.log(self.upper)
-        return self.lower, self.upper
-
-    def to_search(self, value: float) -> float:
-        v = min(max(float(value), self.least), self.upper)
-        return math.log(v) if self.log else v
-
-    def from_search(self, x: float) -> float:
-        v = math.exp(x) if self.log else float(x)
-        return min(max(v, self.least), self.upper)
 
 
 @dataclass
@@ -404,27 +369,25 @@ def free_params(effects, fixed: dict | None = None) -> list[FreeParam]:
 
 
 def decode(free: list[FreeParam], x: np.ndarray) -> dict:
-    """Parameter dict from an optimiser vector (search coordinates, :class:`FreeParam`;
-    choices indexed by the rounded value)."""
+    """Parameter dict from an optimiser vector (choices indexed by the rounded value)."""
     out = {}
     for p, v in zip(free, np.asarray(x, dtype=float), strict=True):
         if p.choices is not None:
             out[p.name] = float(p.choices[int(np.clip(np.rint(v), 0, len(p.choices) - 1))])
         else:
-            out[p.name] = p.from_search(v)
+            out[p.name] = float(np.clip(v, p.lower, p.upper))
     return out
 
 
 def encode(free: list[FreeParam], params: dict) -> np.ndarray:
-    """Optimiser vector (search coordinates) of a parameter dict (the nearest choice for
-    discrete ones)."""
+    """Optimiser vector of a parameter dict (the nearest choice for discrete ones)."""
     x = []
     for p in free:
         v = float(params[p.name])
         if p.choices is not None:
             x.append(float(np.argmin(np.abs(np.asarray(p.choices) - v))))
         else:
-            x.append(p.to_search(v))
+            x.append(float(np.clip(v, p.lower, p.upper)))
     return np.asarray(x)
 
 
@@ -438,8 +401,7 @@ class FitResult:
     free : the fitted parameters.
     objective : rad, the mean gap over the fit steps at the best parameters.
     gaps : ndarray (G,), rad, per-step gap at the best parameters (Gamma order).
-    cloud_x : ndarray (n_evals, len(free)), every evaluated optimiser vector (search
-        coordinates: :func:`decode` gives the parameters).
+    cloud_x : ndarray (n_evals, len(free)), every evaluated optimiser vector.
     cloud_gaps : ndarray (n_evals, G), the per-step gaps of each evaluation.
     n_evals, seconds : cost of the fit.
     """
@@ -632,7 +594,7 @@ def fit_model(
 
         de = differential_evolution(
             objective,
-            [p.search_bounds() for p in sub],
+            [(p.lower, p.upper) for p in sub],
             seed=seed,
             popsize=max(1, min(popsize, settings.max_population // len(sub))),
             maxiter=maxiter,
@@ -689,14 +651,14 @@ def _defaults(free: list[FreeParam]) -> dict:
 def _refine(ev: _Evaluator, free: list[FreeParam], x: np.ndarray, max_evals: int) -> np.ndarray:
     """A short Nelder-Mead search over the continuous parameters from ``x`` (no gradients).
 
-    Discrete choices stay at their value. The simplex starts at 5 % of each search range, a
+    Discrete choices stay at their value. The simplex starts at 5 % of each range, a
     scale the global search resolves; the objective clips to the bounds.
     """
     cont = [i for i, p in enumerate(free) if p.choices is None]
     if not cont or max_evals < 2:
         return x
-    lo = np.array([free[i].search_bounds()[0] for i in cont])
-    hi = np.array([free[i].search_bounds()[1] for i in cont])
+    lo = np.array([free[i].lower for i in cont])
+    hi = np.array([free[i].upper for i in cont])
 
     def sub(z):
         y = x.copy()

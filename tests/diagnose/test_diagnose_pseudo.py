@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from diag_synth import duration_s, pseudo_flights, write_run
+from diag_synth import GAMMAS, duration_s, pseudo_flights, write_run
 
 from bouncelab.gap.diagnose import diagnose_flights
 from bouncelab.gap.fit import FitSettings
@@ -89,3 +89,17 @@ def test_combination_recovered_by_joint_refit(run_dir):
     assert abs(params["mu"] - 0.25) / 0.25 < 0.15
     assert abs(params["e"] - 0.45) / 0.45 < 0.15
     assert r["unexplained"] is False
+
+
+def test_a_down_sweep_is_diagnosed_like_an_up_sweep(tmp_path):
+    """Runs of other labs need not sweep upwards: Gamma stepped down (state carried from
+    the higher step, so the branches of the hysteresis are those a down-sweep shows).
+    Truth: friction with mu = 0.2; it must be the top effect, within 15 %, explained,
+    and the profile must come out in Gamma order."""
+    down = write_run(tmp_path, "down", gammas=tuple(reversed(GAMMAS)))
+    r = _diagnose(down, Model.parse("friction", {"mu": 0.2}))
+    assert r["selected"][:1] == ["friction"]
+    assert abs(r["steps"][0]["params"]["mu"] - 0.2) / 0.2 < 0.15
+    assert r["unexplained"] is False
+    gammas = r["profile"]["gamma"]
+    assert gammas == sorted(gammas) and len(gammas) == len(GAMMAS)

@@ -21,6 +21,7 @@ import pandas as pd
 from bouncelab.errors import BouncelabError
 from bouncelab.gap.features import circular_mean, compare_features
 from bouncelab.gap.fit import (
+    DATA_RESOLUTION,
     K_CHOICES,
     MEMBER_SPREAD,
     MIN_FLOOR,
@@ -132,13 +133,15 @@ def _fit_summary(fit: FitResult, problem: Problem, seed: int, n_boot: int) -> di
     ``params_ci`` joins two intervals: the bootstrap over fit steps (which steps) and the
     noise set, the evaluated parameters whose objective lies within
     :data:`bouncelab.gap.fit.NOISE_SIGMAS` noise standard deviations of the best (which
-    draw of the orbit lottery). The bootstrap alone was too narrow on the seed-like
-    blind cases: mu [0.20, 0.25] for a true 0.29, where the objective at the truth lies
-    within its own noise of the best.
+    draw of the orbit lottery), or within :data:`bouncelab.gap.fit.DATA_RESOLUTION`
+    noise floors when that is more (what the data cannot resolve). The bootstrap alone
+    was too narrow on the seed-like blind cases: mu [0.20, 0.25] for a true 0.29, where
+    the objective at the truth lies within its own noise of the best.
     """
     boot = bootstrap_params(fit, problem, n_boot=n_boot, seed=seed)
     noise = objective_noise(fit, problem)
-    near = noise_intervals(fit, problem, NOISE_SIGMAS * noise)
+    resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
+    near = noise_intervals(fit, problem, max(NOISE_SIGMAS * noise, resolution))
     ci = intervals(fit, boot)
     for name, (lo, hi) in near.items():
         ci[name] = [min(ci[name][0], lo), max(ci[name][1], hi)]

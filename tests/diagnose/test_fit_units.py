@@ -178,3 +178,24 @@ def test_pick_addition_prefers_fewer_parameters_within_the_tie():
     # no tie band: the least gap
     rows = [("feedback", 0.130, 3), ("gamma_scale", 0.143, 1)]
     assert rows[pick_addition(rows, 0.0)][0] == "feedback"
+
+
+def test_a_noiseless_objective_still_gets_the_data_resolution(monkeypatch):
+    """With the objective's own noise 0, the interval still spans the evaluations within
+    DATA_RESOLUTION (0.12) mean floors of the best: floors 0.5 rad give a tolerance of
+    0.06 rad, which keeps mu 0.3 (0.04 rad worse) and not mu 0.1 (0.15 rad worse)."""
+    from bouncelab.gap import diagnose
+
+    class _Floors(_P):
+        def __init__(self, n):
+            super().__init__(n)
+            self.floor = np.full(n, 0.5)
+
+        def mean(self, values, mask):
+            return float(np.mean(np.asarray(values)[mask]))
+
+    monkeypatch.setattr(diagnose, "objective_noise", lambda fit, problem: 0.0)
+    gaps = [[0.25, 0.25], [0.1, 0.1], [0.14, 0.14], [0.5, 0.5]]
+    fit = _fake_fit([0.1, 0.2, 0.3, 0.4], gaps)
+    summary = diagnose._fit_summary(fit, _Floors(2), seed=0, n_boot=20)
+    assert summary["params_ci"]["mu"] == [0.2, 0.3]

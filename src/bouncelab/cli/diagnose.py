@@ -42,7 +42,10 @@ def add_parser(sub) -> None:
     p.add_argument("--baseline", default="ideal", help="model the effects are added to")
     p.add_argument("--seed", type=int, default=0, help="seed of simulations and optimisers")
     p.add_argument(
-        "--workers", type=int, default=2, help="processes that evaluate the fits' populations (default 2)"
+        "--workers",
+        type=int,
+        default=2,
+        help="processes that evaluate the fits' populations (default 2)",
     )
     p.add_argument(
         "--timings", action="store_true", help="add wall-clock timings (not deterministic)"

@@ -199,3 +199,37 @@ def test_a_noiseless_objective_still_gets_the_data_resolution(monkeypatch):
     fit = _fake_fit([0.1, 0.2, 0.3, 0.4], gaps)
     summary = diagnose._fit_summary(fit, _Floors(2), seed=0, n_boot=20)
     assert summary["params_ci"]["mu"] == [0.2, 0.3]
+
+
+def test_refine_budget_scales_with_the_run_and_skips_small_models():
+    """The refinement's generations are what REFINE_CYCLES allows on the run's protocol
+    (evaluations x draws x cycles), at most REFINE_MAXITER; models of fewer than
+    REFINE_MIN_PARAMS continuous parameters, and runs too long for two generations, are
+    not refined."""
+    import pandas as pd
+
+    from bouncelab.gap import fit
+    from bouncelab.gap.fit import FitSettings, Problem, refine_settings
+
+    def problem(cycles):
+        p = Problem.__new__(Problem)
+        p.protocol = pd.DataFrame({"cycles": [cycles]})
+        return p
+
+    combo = ("friction", "restitution", "feedback")  # 5 continuous parameters + ride_load
+    settings = FitSettings()
+    population = 8 * 6  # (popsize 6 + 2 for feedback) per parameter, 48 at most
+    short = refine_settings(problem(100), combo, settings)
+    assert short.maxiter == fit.REFINE_MAXITER and short.max_population == 48
+    cycles = 7650
+    expected = int(fit.REFINE_CYCLES / (cycles * fit.REFINE_DRAWS) // population) - 1
+    assert refine_settings(problem(cycles), combo, settings).maxiter == expected
+    assert 2 <= expected < fit.REFINE_MAXITER
+    assert refine_settings(problem(10**7), combo, settings) is None
+    # one or two continuous parameters: the rounds' budget finds them
+    assert refine_settings(problem(100), ("friction", "restitution"), settings) is None
+    assert refine_settings(problem(100), ("harmonic",), settings) is None
+    # calibrated parameters held fixed do not count
+    fixed = {"mu": 0.2, "e": 0.5}
+    assert refine_settings(problem(100), combo, settings, fixed).maxiter == fit.REFINE_MAXITER
+    assert refine_settings(problem(100), ("friction", "restitution"), settings, fixed) is None

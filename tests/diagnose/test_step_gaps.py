@@ -113,6 +113,36 @@ def test_fit_in_an_evaluation_pool_equals_the_serial_fit(problem):
     assert pooled.model.params == serial.model.params
 
 
+def test_several_draws_average_the_capped_gaps_of_shifted_ensembles(problem):
+    """n_draws = 3 gives the mean over the ensembles shifted by 0, 1/3 and 2/3 of the
+    member spacing of each one's capped gaps (the refinement's expected gap)."""
+    from dataclasses import replace
+
+    model = Model.parse("restitution", {"e": 0.5})
+    three = replace(problem, n_draws=3)
+    draws = [problem.clipped(step_gaps(problem, model, shift=k / 3)) for k in range(3)]
+    np.testing.assert_allclose(step_gaps(three, model), np.mean(draws, axis=0), atol=1e-12)
+    # a shift moves every draw alike
+    moved = [problem.clipped(step_gaps(problem, model, shift=0.5 + k / 3)) for k in range(3)]
+    np.testing.assert_allclose(
+        step_gaps(three, model, shift=0.5), np.mean(moved, axis=0), atol=1e-12
+    )
+
+
+def test_a_pool_evaluates_other_draws_of_its_problem(problem):
+    """The refinement reuses the selection's pool: a task carries its n_draws, and the
+    workers' numbers equal the in-process ones."""
+    from dataclasses import replace
+
+    three = replace(problem, n_draws=3)
+    params = [{"e": 0.3}, {"e": 0.5}]
+    with EvaluationPool(problem, 2) as pool:
+        pooled = pool.gaps("restitution", params, n_draws=3)
+        assert pool.serves(three)
+    for p, g in zip(params, pooled, strict=True):
+        np.testing.assert_array_equal(g, step_gaps(three, Model.parse("restitution", p)))
+
+
 def test_an_evaluation_pool_serves_only_its_problem(problem):
     other = make_problem(problem.run, problem.data_table, problem.duration_s, n_members=1)
     with EvaluationPool(problem, 2) as pool, pytest.raises(ValueError, match="another problem"):

@@ -26,6 +26,7 @@ from bouncelab.gap.fit import (
     MEMBER_SPREAD,
     MIN_FLOOR,
     NOISE_SIGMAS,
+    REFINE_DRAWS,
     RIDE_LOAD_CHOICES,
     FitResult,
     FitSettings,
@@ -277,9 +278,12 @@ def diagnose_flights(
             }
         )
     steps, warnings, prev_g = [], [], g_base
+    last = len(sel["accepted"]) - 1
     for i, (eff, fit) in enumerate(sel["accepted"]):
         g = heldout_gap(fit, problem)
-        summary = _fit_summary(fit, problem, seed + i, fit_settings.n_boot)
+        # the refined final fit's cloud and noise are of the averaged objective
+        fit_problem = sel["final_problem"] if i == last else problem
+        summary = _fit_summary(fit, fit_problem, seed + i, fit_settings.n_boot)
         entry = {
             "effect": eff,
             "params": _params(fit.model),
@@ -366,7 +370,10 @@ def diagnose_flights(
             "final": cmp_final["differing"],
         },
         "phase_offset": {"baseline": phase_base, "final": phase_final},
-        "design": _design(problem, fit_settings, select_settings, baseline, seed, fixed),
+        "design": {
+            **_design(problem, fit_settings, select_settings, baseline, seed, fixed),
+            "refine": _refine_design(sel["refined"]),
+        },
         "profile": {
             "step": [int(s) for s in problem.steps["step"]],
             "gamma": [float(g) for g in problem.steps["gamma"]],
@@ -424,6 +431,17 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
             "max_effects": select_settings.max_effects,
             "phase_tol": PHASE_TOL,
         },
+    }
+
+
+def _refine_design(refined) -> dict | None:
+    """How the selected model was refined (:func:`bouncelab.gap.fit.refine_settings`)."""
+    if refined is None:
+        return None
+    return {
+        "n_draws": REFINE_DRAWS,
+        "max_population": refined.max_population,
+        "maxiter": refined.maxiter,
     }
 
 

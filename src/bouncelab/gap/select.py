@@ -14,7 +14,8 @@ smallest held-out gap (the one with the fewest parameters among those tied with 
 - by at least ``min_shrink`` of the current gap,
 
 and selection stops when no addition passes, when the current gap is already within
-``explained_ratio`` noise floors, or after ``max_effects`` effects. All gaps here are
+``explained_ratio`` noise floors, or after ``max_effects`` effects. The selected model's
+parameters are then refined (:func:`bouncelab.gap.fit.refine_settings`). All gaps here are
 weighted means over held-out steps in radians (:meth:`bouncelab.gap.fit.Problem.mean`);
 the noise floor is the same mean of the data's own floor.
 """
@@ -23,16 +24,18 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from bouncelab.gap.fit import (
     K_CHOICES,
+    REFINE_DRAWS,
     RIDE_LOAD_CHOICES,
     EvaluationPool,
     FitResult,
     FitSettings,
     Problem,
     fit_model,
+    refine_settings,
 )
 from bouncelab.physics import EFFECT_ORDER, Model
 
@@ -195,7 +198,11 @@ def forward_select(
     dict with ``baseline`` (FitResult), ``rounds`` (list of lists of
     ``(effect, FitResult)``: every addition tried in each round; the first round is
     fitted even when the baseline is within the floor), ``accepted`` (list of
-    ``(effect, FitResult)`` in order), ``final`` (FitResult), ``stop`` (why it stopped).
+    ``(effect, FitResult)`` in order; the last one refined when
+    :func:`bouncelab.gap.fit.refine_settings` allows), ``final`` (FitResult), ``stop``
+    (why it stopped), ``final_problem`` (the problem of the final fit: ``problem`` with
+    ``n_draws`` of the refinement, or ``problem`` itself) and ``refined`` (the refinement's
+    settings, or None).
     """
     fit_settings = fit_settings or FitSettings()
     settings = settings or SelectSettings()
@@ -249,10 +256,25 @@ def forward_select(
             accepted.append((eff, best))
             effects.append(eff)
             current = best
+        final_problem, refined = problem, None
+        if accepted:
+            refined = refine_settings(problem, current.model.effects, fit_settings, fixed)
+        if refined is not None:
+            # the selected model again, from its fitted values, on the expected gap
+            final_problem = replace(problem, n_draws=REFINE_DRAWS)
+            (current,) = fit_many(
+                [(final_problem, current.model.name, dict(current.model.params), fixed,
+                  None, refined, seed)],
+                pool,
+                progress,
+            )  # fmt: skip
+            accepted[-1] = (accepted[-1][0], current)
     return {
         "baseline": base_fit,
         "rounds": rounds,
         "accepted": accepted,
         "final": current,
         "stop": stop,
+        "final_problem": final_problem,
+        "refined": refined,
     }

@@ -204,8 +204,8 @@ def test_a_noiseless_objective_still_gets_the_data_resolution(monkeypatch):
 def test_refine_budget_scales_with_the_run_and_skips_small_models():
     """The refinement's generations are what REFINE_CYCLES allows on the run's protocol
     (evaluations x draws x cycles), at most REFINE_MAXITER; models of fewer than
-    REFINE_MIN_PARAMS continuous parameters, and runs too long for two generations, are
-    not refined."""
+    REFINE_MIN_PARAMS continuous parameters, and runs too long for
+    REFINE_MIN_GENERATIONS generations, are not refined."""
     import pandas as pd
 
     from bouncelab.gap import fit
@@ -221,11 +221,12 @@ def test_refine_budget_scales_with_the_run_and_skips_small_models():
     population = 8 * 6  # (popsize 6 + 2 for feedback) per parameter, 48 at most
     short = refine_settings(problem(100), combo, settings)
     assert short.maxiter == fit.REFINE_MAXITER and short.max_population == 48
-    cycles = 7650
+    cycles = 2000
     expected = int(fit.REFINE_CYCLES / (cycles * fit.REFINE_DRAWS) // population) - 1
     assert refine_settings(problem(cycles), combo, settings).maxiter == expected
-    assert 2 <= expected < fit.REFINE_MAXITER
-    assert refine_settings(problem(10**7), combo, settings) is None
+    assert fit.REFINE_MIN_GENERATIONS <= expected < fit.REFINE_MAXITER
+    # the shipped 7650-cycle sweep would get 4 generations: skipped
+    assert refine_settings(problem(7650), combo, settings) is None
     # one or two continuous parameters: the rounds' budget finds them
     assert refine_settings(problem(100), ("friction", "restitution"), settings) is None
     assert refine_settings(problem(100), ("harmonic",), settings) is None

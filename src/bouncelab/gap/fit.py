@@ -113,9 +113,14 @@ REFINE_MAXITER = 40
 
 #: Budget of the refinement in simulated drive cycles (one ensemble member; evaluations x
 #: draws x the protocol's cycles): about 30 generations of 48 on a run of 1500 cycles
-#: (the blind cases), 4 on the shipped 7650-cycle sweep, whose diagnosis must stay
-#: within 2 minutes.
+#: (the blind cases, 8-40).
 REFINE_CYCLES = 6e6
+
+#: Fewer generations than this and the refinement is skipped: less than the selection's
+#: own joint search (10, 20 with feedback) is not expected to improve on it, and the
+#: 4 generations the budget gives the shipped 7650-cycle sweep made its diagnosis 147 s
+#: instead of 89 s (goal 120 s).
+REFINE_MIN_GENERATIONS = 8
 
 #: The selected model is refined when it has at least this many continuous parameters:
 #: the round budgets find one or two parameters, not the armature's curved valley.
@@ -722,7 +727,8 @@ def refine_settings(
 
     The number of generations is what :data:`REFINE_CYCLES` allows on this run (at most
     :data:`REFINE_MAXITER`); None for models of fewer than :data:`REFINE_MIN_PARAMS`
-    continuous parameters or when fewer than two generations fit the budget.
+    continuous parameters or when fewer than :data:`REFINE_MIN_GENERATIONS` generations
+    fit the budget (long runs).
     """
     free = free_params(effects, fixed)
     if sum(p.choices is None for p in free) < REFINE_MIN_PARAMS:
@@ -731,7 +737,7 @@ def refine_settings(
     population = population_per_param(popsize, REFINE_POPULATION, len(free)) * len(free)
     cycles = float(problem.protocol["cycles"].sum()) * REFINE_DRAWS
     maxiter = min(REFINE_MAXITER, int(REFINE_CYCLES / cycles // population) - 1)
-    if maxiter < 2:
+    if maxiter < REFINE_MIN_GENERATIONS:
         return None
     return replace(
         settings,

@@ -12,6 +12,7 @@ from bouncelab.gap.fit import (
     EvaluationPool,
     FitSettings,
     align_steps,
+    best_member_simulation,
     fit_model,
     make_problem,
     member_model,
@@ -55,6 +56,26 @@ def test_step_gaps_is_the_least_member_gap_of_the_plain_route(problem, model, mo
         for m in range(problem.n_members)
     ]  # fmt: skip
     np.testing.assert_allclose(fast, np.min(plain, axis=0), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("model", MODELS[1:3], ids=lambda m: m.name)
+def test_best_member_simulation_is_the_table_step_gaps_scores(problem, model, monkeypatch):
+    """Its per-step gap is the least over members (the fits' number, 1e-9 rad), every
+    step comes from one member (its flights equal that member's), rows in time order."""
+    import bouncelab.gap.fit as fit
+
+    monkeypatch.setattr(fit, "CHATTER_SAMPLES", 1e-5 / fit.resolution_T(problem.run, 1.0))
+    best = best_member_simulation(problem, model)
+    gaps = align_steps(gap_table(problem.data, best, steps=problem.steps), problem.steps)
+    np.testing.assert_allclose(gaps["gap"], step_gaps(problem, model), rtol=0, atol=1e-9)
+    members = [simulate(problem, model, m) for m in range(problem.n_members)]
+    for step, rows in best.groupby("step"):
+        same = [
+            np.array_equal(rows["T"].to_numpy(), sim.loc[sim["step"] == step, "T"].to_numpy())
+            for sim in members
+        ]
+        assert any(same), f"step {step} mixes members"
+    assert np.all(np.diff(best["t_takeoff_s"].to_numpy()) >= 0)
 
 
 def test_protocol_arrays_match_simulate_protocol():

@@ -31,6 +31,7 @@ from bouncelab.gap.fit import (
     FitSettings,
     Problem,
     align_steps,
+    best_member_simulation,
     bootstrap_params,
     fit_warnings,
     intervals,
@@ -38,7 +39,6 @@ from bouncelab.gap.fit import (
     noise_intervals,
     objective_noise,
     poorly_identified,
-    simulate,
 )
 from bouncelab.gap.regions import segment_regions
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
@@ -308,8 +308,9 @@ def diagnose_flights(
 
     final: FitResult = sel["final"]
     final_gap = heldout_gap(final, problem)
-    base_sim = simulate(problem, base_fit.model)
-    final_sim = simulate(problem, final.model) if sel["accepted"] else base_sim
+    # features read where the model matches the data best, as the gaps are
+    base_sim = best_member_simulation(problem, base_fit.model)
+    final_sim = best_member_simulation(problem, final.model) if sel["accepted"] else base_sim
     cmp_base = compare_features(problem.data_table, base_sim, steps=problem.steps)
     cmp_final = compare_features(problem.data_table, final_sim, steps=problem.steps)
 

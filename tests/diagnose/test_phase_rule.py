@@ -9,7 +9,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bouncelab.gap.diagnose import MIN_FLOOR, PHASE_TOL, SHARP_FLOORS, sharp_phase_offset
+from bouncelab.gap.diagnose import (
+    MIN_FLOOR,
+    PHASE_TOL,
+    SHARP_FLOORS,
+    phase_shift_reason,
+    sharp_phase_offset,
+)
 
 
 def _case(offsets, floors=None):
@@ -29,6 +35,8 @@ def test_a_shift_of_every_step_is_read_in_full():
     out = sharp_phase_offset(*_case(off))
     assert out["median"] == pytest.approx(shift, abs=2e-3)
     assert abs(out["median"]) > PHASE_TOL and out["steps"] == "sharp" and out["n_steps"] == 12
+    assert out["median_se"] < 2e-3
+    assert "-0.377 rad (median over 12 sharp steps" in phase_shift_reason(out)
 
 
 def test_one_step_on_another_orbit_moves_the_mean_not_the_median():
@@ -59,3 +67,24 @@ def test_chaotic_steps_are_left_out_unless_fewer_than_three_are_sharp():
 def test_no_step_with_flights_on_both_sides_gives_none():
     out = sharp_phase_offset(*_case([np.nan, np.nan, np.nan]))
     assert out["median"] is None and out["n_steps"] == 0
+    assert phase_shift_reason(out) is None
+
+
+def test_a_large_median_of_scattered_chaotic_steps_is_not_a_shift():
+    """The shipped accel_g2-4: five chaotic steps, offsets -0.21 to +0.64 rad. The median
+    (+0.18) is beyond 0.1 rad but within 2 standard errors of zero: no flag. The same
+    median with a tenth of the scatter is flagged."""
+    broad = [SHARP_FLOORS * MIN_FLOOR * 3] * 5
+    off = np.array([-0.07, 0.64, 0.18, 0.28, -0.21])
+    out = sharp_phase_offset(*_case(off, broad))
+    assert out["steps"] == "all" and out["median"] == pytest.approx(0.18)
+    assert out["median_se"] > out["median"] / 2
+    assert phase_shift_reason(out) is None
+    tight = sharp_phase_offset(*_case(0.18 + 0.1 * (off - 0.18), broad))
+    assert phase_shift_reason(tight) is not None
+
+
+def test_fewer_than_three_steps_never_flag():
+    out = sharp_phase_offset(*_case([0.5, 0.5]))
+    assert out["median"] == pytest.approx(0.5) and out["median_se"] is None
+    assert phase_shift_reason(out) is None

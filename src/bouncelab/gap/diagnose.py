@@ -474,7 +474,7 @@ def sharp_phase_offset(problem: Problem, cmp: dict) -> dict:
     off = per["phase_offset"].to_numpy(dtype=float)
     finite = np.isfinite(off)
     sharp = finite & (problem.floor <= SHARP_FLOORS * MIN_FLOOR)
-    use, which = (sharp, "sharp") if sharp.sum() >= 3 else (finite, "all")
+    use, which = (sharp, "sharp") if sharp.sum() >= PHASE_MIN_STEPS else (finite, "all")
     n = int(use.sum())
     if n == 0:
         return {

@@ -333,6 +333,12 @@ def simulate(problem: Problem, model: Model, member: int = 0) -> pd.DataFrame:
     return sim.loc[sim["T"].to_numpy(dtype=float) >= problem.min_T].reset_index(drop=True)
 
 
+def _combined_gap(d: dict) -> np.ndarray:
+    """The per-step gap (rad) of :func:`bouncelab.gap.distances.step_distances` output,
+    weighted as in :func:`bouncelab.gap.distances.gap_table` (``DEFAULT_ALPHA``)."""
+    return DEFAULT_ALPHA * d["w1_T"] + (1.0 - DEFAULT_ALPHA) * d["w_returnmap"]
+
+
 def best_member_simulation(problem: Problem, model: Model) -> pd.DataFrame:
     """The model's flight table that :func:`step_gaps` scores: at each Gamma step, the
     flights of the ensemble member whose gap to the data is least (the first on ties).
@@ -352,9 +358,8 @@ def best_member_simulation(problem: Problem, model: Model) -> pd.DataFrame:
     for m in range(max(1, problem.n_members)):
         sim = simulate(problem, model, member=m)
         d = step_distances(problem.data, prepare_flights(sim, name="simulation"), grid)
-        gap = DEFAULT_ALPHA * d["w1_T"] + (1.0 - DEFAULT_ALPHA) * d["w_returnmap"]
         sims.append(sim)
-        gaps.append(np.nan_to_num(gap, nan=np.inf))
+        gaps.append(np.nan_to_num(_combined_gap(d), nan=np.inf))
     best = np.argmin(np.asarray(gaps), axis=0)  # shape (G,), grid order
     parts = [sim.loc[sim["step"].isin(grid[best == m])] for m, sim in enumerate(sims)]
     out = pd.concat(parts, ignore_index=True)
@@ -419,8 +424,7 @@ def _one_draw_gaps(
         mine = member == m
         sample = sample_from_arrays(step[mine], t[mine], settled[mine], problem.data.directions)
         d = step_distances(problem.data, sample, grid)
-        gap = DEFAULT_ALPHA * d["w1_T"] + (1.0 - DEFAULT_ALPHA) * d["w_returnmap"]
-        gaps.append(gap[pos])
+        gaps.append(_combined_gap(d)[pos])
     return np.min(gaps, axis=0)
 
 

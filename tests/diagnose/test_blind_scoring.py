@@ -77,6 +77,18 @@ def test_summary_counts():
     assert s["param_errors"] == {"friction.mu": [pytest.approx(0.05)]}
 
 
+def test_spurious_second_effect_counts_against_the_set_not_the_top():
+    """Restitution found first, then a harmonic it does not have: the top effect is
+    right, the set is not."""
+    scores = {
+        "r": score_case(_diag(["restitution", "harmonic"], {"e": 0.2}), _truth(e=0.2)),
+        "f": score_case(_diag(["friction"], {"mu": 0.2}), _truth(mu=0.2)),
+    }
+    s = summarize(scores)
+    assert s["top_effect_right"] == 1.0
+    assert (s["n_single"], s["single_set_right"]) == (2, 1)
+
+
 def test_interval_hits_and_their_count():
     """mu 0.2 inside [0.15, 0.25], e 0.5 outside [0.3, 0.45]; psi 0.05 inside the interval
     [6.2, 6.4] that wraps past 2 pi (6.33 = 0.05 + 2 pi)."""

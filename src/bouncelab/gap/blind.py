@@ -216,14 +216,16 @@ def summarize(scores: dict[str, dict]) -> dict:
 
     The confusion matrix counts, for every case with one true library effect or none,
     the true label (rows) against the top selected effect (columns), over
-    :data:`LABELS`. Combination cases are listed with their selected sets. Parameter
+    :data:`LABELS`. ``single_set_right`` counts the single-effect cases whose selected
+    set is exactly the true effect (the matrix sees only the top one, not a spurious
+    second effect). Combination cases are listed with their selected sets. Parameter
     errors are those of the null, single-effect and combination cases (per case they
     stay in ``scores[name]["param_errors"]``, out-of-library cases included).
     """
     idx = {lab: i for i, lab in enumerate(LABELS)}
     cm = np.zeros((len(LABELS), len(LABELS)), dtype=int)
     singles = nulls = outs = 0
-    top_right = false_alarms = flagged = 0
+    top_right = set_right = false_alarms = flagged = 0
     errs: dict[str, list[float]] = {}
     hits: list[bool] = []
     for sc in scores.values():
@@ -233,6 +235,7 @@ def summarize(scores: dict[str, dict]) -> dict:
         if sc["kind"] == "single":
             singles += 1
             top_right += int(sc["top_right"])
+            set_right += int(sc["set_right"])
         if sc["kind"] == "null":
             nulls += 1
             false_alarms += int(sc["false_alarm"])
@@ -255,6 +258,7 @@ def summarize(scores: dict[str, dict]) -> dict:
         "confusion": cm.tolist(),
         "n_single": singles,
         "top_effect_right": top_right / singles if singles else None,
+        "single_set_right": set_right,
         "n_null": nulls,
         "null_false_alarms": false_alarms,
         "n_outside": outs,

@@ -234,3 +234,27 @@ def test_refine_budget_scales_with_the_run_and_skips_small_models():
     fixed = {"mu": 0.2, "e": 0.5}
     assert refine_settings(problem(100), combo, settings, fixed).maxiter == fit.REFINE_MAXITER
     assert refine_settings(problem(100), ("friction", "restitution"), settings, fixed) is None
+    # what the rounds spent comes off DIAGNOSIS_CYCLES: less left, fewer generations
+    left = fit.DIAGNOSIS_CYCLES - fit.REFINE_CYCLES / 2
+    half = int(fit.REFINE_CYCLES / 2 / (cycles * fit.REFINE_DRAWS) // population) - 1
+    assert refine_settings(problem(cycles), combo, settings, None, left).maxiter == half
+    assert refine_settings(problem(cycles), combo, settings, None, fit.DIAGNOSIS_CYCLES) is None
+
+
+def test_feedback_search_generations_shrink_on_long_runs():
+    """A model with feedback searches maxiter x feedback_maxiter_factor generations while
+    FEEDBACK_SEARCH_CYCLES allows them for a full population, fewer on longer runs, never
+    fewer than maxiter; models without feedback and runs of unknown length keep theirs."""
+    from bouncelab.gap import fit
+    from bouncelab.gap.fit import FitSettings, search_budget
+
+    s = FitSettings()
+    full = s.maxiter * s.feedback_maxiter_factor
+    assert search_budget(("feedback",), s) == (s.popsize + s.feedback_extra_popsize, full)
+    assert search_budget(("feedback",), s, 2460.0)[1] == full  # the blind feedback runs
+    cycles = 4260.0
+    allowed = int(fit.FEEDBACK_SEARCH_CYCLES / (s.max_population * cycles)) - 1
+    assert s.maxiter < allowed < full
+    assert search_budget(("friction", "feedback"), s, cycles)[1] == allowed
+    assert search_budget(("feedback",), s, 1e6)[1] == s.maxiter
+    assert search_budget(("friction",), s, 1e6) == (s.popsize, s.maxiter)

@@ -168,3 +168,26 @@ def test_an_evaluation_pool_serves_only_its_problem(problem):
     other = make_problem(problem.run, problem.data_table, problem.duration_s, n_members=1)
     with EvaluationPool(problem, 2) as pool, pytest.raises(ValueError, match="another problem"):
         fit_model(other, "friction", pool=pool)
+
+
+def test_feedback_search_shrinks_with_the_run_only_once_the_armature_is_fitted(
+    problem, monkeypatch
+):
+    """fit_model passes the run's cycles to search_budget (which may then cut the extra
+    feedback generations) only when the armature's values are already in ``base``: the
+    first search of feedback keeps its whole budget."""
+    from bouncelab.gap import fit
+
+    seen = []
+    real = fit.search_budget
+
+    def spy(effects, settings, cycles=None):
+        seen.append(cycles)
+        return real(effects, settings, cycles)
+
+    monkeypatch.setattr(fit, "search_budget", spy)
+    small = FitSettings(popsize=1, maxiter=1, local_evals=1, max_population=4)
+    armature = {"mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1, "ride_load": 0.0}
+    fit_model(problem, "feedback", {}, fixed={"ride_load": 0.0}, settings=small)
+    fit_model(problem, "friction+feedback", armature, fixed={"ride_load": 0.0}, settings=small)
+    assert seen == [None, float(problem.protocol["cycles"].sum())]

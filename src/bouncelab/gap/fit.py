@@ -23,17 +23,20 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 import pandas as pd
 from scipy.optimize import differential_evolution, minimize
 
+from bouncelab.gap._kernels import ensemble_gaps
 from bouncelab.gap.distances import (
     DEFAULT_ALPHA,
+    KEY_SPAN,
     FlightSample,
     flight_order,
     prepare_flights,
-    sample_from_arrays,
+    returnmap_scale,
     step_distances,
 )
 from bouncelab.gap.noise import noise_floor
@@ -117,6 +120,23 @@ REFINE_MAXITER = 40
 #: (the blind cases, 8-40).
 REFINE_CYCLES = 6e6
 
+#: Budget of the whole selection and refinement in simulated drive cycles (evaluations x
+#: draws x the protocol's cycles, one ensemble member): the refinement gets what the
+#: rounds left of it, at most :data:`REFINE_CYCLES`. Why: on 2 cores a cycle of the
+#: seed-like models costs 6.6-8.5 us with the ensemble (blind cases, session 8); the
+#: long out-of-library runs spent 19 and 14 million cycles in the rounds, and a full
+#: refinement on top made them 164 s and 138 s (goal 120 s). Every library case of the
+#: blind validation spends less than this (most, g_feedback, 14.8 million).
+DIAGNOSIS_CYCLES = 15e6
+
+#: Budget of one search of a model with ``feedback`` whose armature was already fitted
+#: (a later round of the selection), in simulated cycles (evaluations x the protocol's
+#: cycles): its extra generations (``feedback_maxiter_factor``) shrink on long runs to
+#: what this allows, never below the plain ``maxiter``. The blind cases' library runs
+#: with feedback (at most 2460 cycles) keep all 20; on ``ool_vibration`` (4260 cycles,
+#: feedback accepted in round 2) round 3 gets 11.
+FEEDBACK_SEARCH_CYCLES = 24 * 21 * 2500.0
+
 #: Fewer generations than this and the refinement is skipped: less than the selection's
 #: own joint search (10, 20 with feedback) is not expected to improve on it, and the
 #: 4 generations the budget gives the shipped 7650-cycle sweep made its diagnosis 147 s
@@ -176,6 +196,45 @@ class FreeParam:
     choices: tuple[float, ...] | None = None
 
 
+@dataclass(frozen=True)
+class KernelInputs:
+    """A problem's arrays in the form :func:`bouncelab.gap._kernels.ensemble_gaps` takes.
+
+    ``protocol_step`` int64 (P,): step of each protocol entry (recording order);
+    ``grid`` int64 (G,): the steps ascending; ``pos`` int64 (G,): where each step of
+    ``Problem.steps`` (Gamma order) sits in ``grid``; ``data_t_*``: the data's settled
+    flights and ``data_p_*`` (K rows) its projected return-map pairs, sorted by
+    ``(step, value)``; ``directions`` (K, 2); ``scale`` the return-map factor.
+    """
+
+    protocol_step: np.ndarray
+    grid: np.ndarray
+    pos: np.ndarray
+    data_t_step: np.ndarray
+    data_t_val: np.ndarray
+    data_p_step: np.ndarray
+    data_p_val: np.ndarray
+    directions: np.ndarray
+    scale: float
+
+    @classmethod
+    def of(cls, data: FlightSample, protocol: pd.DataFrame, steps: pd.DataFrame) -> KernelInputs:
+        in_gamma_order = steps["step"].to_numpy(dtype=np.int64)
+        grid = np.sort(in_gamma_order)
+        proj = data.projections
+        return cls(
+            protocol_step=protocol["step"].to_numpy(dtype=np.int64),
+            grid=grid,
+            pos=np.searchsorted(grid, in_gamma_order),
+            data_t_step=data.flights.step,
+            data_t_val=data.flights.value,
+            data_p_step=np.array([p.step for p in proj], dtype=np.int64).reshape(len(proj), -1),
+            data_p_val=np.array([p.value for p in proj], dtype=np.float64).reshape(len(proj), -1),
+            directions=np.ascontiguousarray(data.directions, dtype=np.float64),
+            scale=returnmap_scale(data.directions),
+        )
+
+
 @dataclass
 class Problem:
     """A sweep run prepared for many model evaluations.
@@ -212,6 +271,11 @@ class Problem:
     seed: int = 0
     n_members: int = 1
     n_draws: int = 1
+
+    @cached_property
+    def kernel_inputs(self) -> KernelInputs:
+        """The arrays every evaluation passes to the gap kernel, made once."""
+        return KernelInputs.of(self.data, self.protocol, self.steps)
 
     @property
     def fit(self) -> np.ndarray:
@@ -414,18 +478,14 @@ def _one_draw_gaps(
         chatter_eps=resolution_T(problem.run, CHATTER_SAMPLES),
         buffer=buffer,
     )
-    keep = sim["T"] >= problem.min_T
-    member, step_idx, t, settled = (sim[k][keep] for k in ("member", "step", "T", "settled"))
-    step = proto["step"].to_numpy(dtype=np.int64)[step_idx]
-    grid = np.sort(problem.steps["step"].to_numpy(dtype=np.int64))
-    pos = np.searchsorted(grid, problem.steps["step"].to_numpy(dtype=np.int64))
-    gaps = []
-    for m in range(max(1, problem.n_members)):
-        mine = member == m
-        sample = sample_from_arrays(step[mine], t[mine], settled[mine], problem.data.directions)
-        d = step_distances(problem.data, sample, grid)
-        gaps.append(_combined_gap(d)[pos])
-    return np.min(gaps, axis=0)
+    k = problem.kernel_inputs
+    gaps = ensemble_gaps(
+        sim["member"], k.protocol_step[sim["step"]], sim["T"], sim["settled"],
+        max(1, problem.n_members), float(problem.min_T), k.grid,
+        k.data_t_step, k.data_t_val, k.data_p_step, k.data_p_val, k.directions,
+        DEFAULT_ALPHA, k.scale, KEY_SPAN,
+    )  # fmt: skip
+    return np.min(gaps[:, k.pos], axis=0)
 
 
 def align_steps(table: pd.DataFrame, steps: pd.DataFrame) -> pd.DataFrame:
@@ -672,7 +732,13 @@ def fit_model(
     x = encode(free, start)
     names = [p.name for p in free]
     glob = [i for i, n in enumerate(names) if search is None or n in search]
-    popsize, maxiter = search_budget(proto.effects, settings)
+    # the extra feedback generations shrink on long runs only once the armature has been
+    # fitted (its values are in the initial population): finding it from scratch needs
+    # them all (with 10 on the 7650-cycle sweep_g0-8 it was missed, gamma_scale taken)
+    seeded = all(name in (base or {}) for name in EFFECTS["feedback"])
+    popsize, maxiter = search_budget(
+        proto.effects, settings, problem_cycles(problem) if seeded else None
+    )
     if glob:
         sub = [free[i] for i in glob]
 
@@ -726,13 +792,33 @@ def fit_model(
     )
 
 
-def search_budget(effects, settings: FitSettings) -> tuple[int, int]:
+def problem_cycles(problem: Problem) -> float:
+    """Drive cycles one simulation of ``problem``'s protocol runs (one ensemble member)."""
+    return float(problem.protocol["cycles"].sum())
+
+
+def spent_cycles(fits, problem: Problem) -> float:
+    """Simulated drive cycles (one member) the ``fits`` of ``problem`` used: evaluations
+    x draws x the protocol's cycles, the unit of :data:`DIAGNOSIS_CYCLES`."""
+    return float(sum(f.n_evals for f in fits)) * problem.n_draws * problem_cycles(problem)
+
+
+def search_budget(effects, settings: FitSettings, cycles: float | None = None) -> tuple[int, int]:
     """Differential evolution's ``(popsize per parameter, maxiter)`` for a model of
-    ``effects`` (larger with ``feedback``, see :class:`FitSettings`)."""
+    ``effects`` (larger with ``feedback``, see :class:`FitSettings`) on a run of
+    ``cycles`` simulated drive cycles per evaluation (None: any length).
+
+    With ``feedback`` the extra generations are what :data:`FEEDBACK_SEARCH_CYCLES`
+    allows for a full population (``max_population``), at least ``maxiter``.
+    """
     popsize, maxiter = settings.popsize, settings.maxiter
     if "feedback" in effects:
         popsize += settings.feedback_extra_popsize
-        maxiter *= settings.feedback_maxiter_factor
+        longest = maxiter * settings.feedback_maxiter_factor
+        if cycles is not None and cycles > 0:
+            allowed = int(FEEDBACK_SEARCH_CYCLES / (settings.max_population * cycles)) - 1
+            longest = min(longest, max(maxiter, allowed))
+        maxiter = longest
     return popsize, maxiter
 
 
@@ -743,7 +829,11 @@ def population_per_param(popsize: int, max_population: int, n_params: int) -> in
 
 
 def refine_settings(
-    problem: Problem, effects, settings: FitSettings, fixed: dict | None = None
+    problem: Problem,
+    effects,
+    settings: FitSettings,
+    fixed: dict | None = None,
+    spent_cycles: float = 0.0,
 ) -> FitSettings | None:
     """Budget of the refinement of a selected model of ``effects``, or None to skip it.
 
@@ -759,7 +849,9 @@ def refine_settings(
     selected model's parameters are refined.
 
     The number of generations is what :data:`REFINE_CYCLES` allows on this run (at most
-    :data:`REFINE_MAXITER`); None for models of fewer than :data:`REFINE_MIN_PARAMS`
+    :data:`REFINE_MAXITER`), and no more than what the selection's rounds left of
+    :data:`DIAGNOSIS_CYCLES` (``spent_cycles``: simulated cycles the rounds used,
+    :func:`spent_cycles`); None for models of fewer than :data:`REFINE_MIN_PARAMS`
     continuous parameters or when fewer than :data:`REFINE_MIN_GENERATIONS` generations
     fit the budget (long runs).
     """
@@ -768,8 +860,9 @@ def refine_settings(
         return None
     popsize, _maxiter = search_budget(effects, settings)
     population = population_per_param(popsize, REFINE_POPULATION, len(free)) * len(free)
-    cycles = float(problem.protocol["cycles"].sum()) * REFINE_DRAWS
-    maxiter = min(REFINE_MAXITER, int(REFINE_CYCLES / cycles // population) - 1)
+    cycles = problem_cycles(problem) * REFINE_DRAWS
+    budget = min(REFINE_CYCLES, DIAGNOSIS_CYCLES - float(spent_cycles))
+    maxiter = min(REFINE_MAXITER, int(budget / cycles // population) - 1)
     if maxiter < REFINE_MIN_GENERATIONS:
         return None
     return replace(

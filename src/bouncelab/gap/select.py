@@ -36,6 +36,7 @@ from bouncelab.gap.fit import (
     Problem,
     fit_model,
     refine_settings,
+    spent_cycles,
 )
 from bouncelab.physics import EFFECT_ORDER, Model
 
@@ -258,7 +259,11 @@ def forward_select(
             current = best
         final_problem, refined = problem, None
         if accepted:
-            refined = refine_settings(problem, current.model.effects, fit_settings, fixed)
+            done = [base_fit] + [f for tried in rounds for _e, f in tried]
+            refined = refine_settings(
+                problem, current.model.effects, fit_settings, fixed,
+                spent_cycles(done, problem),
+            )  # fmt: skip
         if refined is not None:
             # the selected model again, from its fitted values, on the expected gap
             final_problem = replace(problem, n_draws=REFINE_DRAWS)

@@ -338,7 +338,7 @@ def blind_validation_blocks(results: Path, captions: Path) -> list[dict]:
         return [
             {
                 "type": "note",
-                "text": "The blind validation was not run in this build (about 31 minutes on "
+                "text": "The blind validation was not run in this build (about 25 minutes on "
                 "2 cores): run snakemake --cores 2 --configfile "
                 "config/with_blind_validation.yaml to include it. docs/diagnosis.md records "
                 "its last measured results.",

@@ -191,3 +191,34 @@ def test_feedback_search_shrinks_with_the_run_only_once_the_armature_is_fitted(
     fit_model(problem, "feedback", {}, fixed={"ride_load": 0.0}, settings=small)
     fit_model(problem, "friction+feedback", armature, fixed={"ride_load": 0.0}, settings=small)
     assert seen == [None, float(problem.protocol["cycles"].sum())]
+
+
+def test_recheck_best_undoes_a_lucky_draw(problem):
+    """recheck_best scores the fit's best evaluations on fresh ensembles and keeps the
+    best of the pooled draws: a far-off point whose recorded gaps were made to look
+    lucky (half the truth's) loses to the truth once its fresh draws are counted; the
+    pool gives the same result as the process itself."""
+    from dataclasses import replace
+
+    from bouncelab.gap.fit import FitResult, free_params, recheck_best
+
+    two = replace(problem, n_draws=2)
+    free = free_params(("restitution",))
+    xs = np.array([[0.4], [0.6], [0.85]])  # the data's truth is e = 0.4
+    gaps = np.array([step_gaps(two, Model.parse("restitution", {"e": x[0]})) for x in xs])
+    gaps[2] = 0.5 * gaps[0]  # a lucky draw: better than the truth's
+    w = two.weights * two.fit
+    assert np.argmin(two.clipped(gaps) @ w) == 2  # the lucky point is the fit's best
+    lucky = FitResult(
+        model=Model.parse("restitution", {"e": 0.85}), free=free, objective=0.0,
+        gaps=gaps[2], cloud_x=xs, cloud_gaps=gaps, n_evals=3, seconds=0.0,
+    )  # fmt: skip
+    checked = recheck_best(lucky, two, top=3)
+    assert checked.model.params["e"] == pytest.approx(0.4)
+    assert checked.n_evals == 6
+    assert checked.objective == pytest.approx(two.mean(checked.gaps, two.fit))
+    with EvaluationPool(two, 2) as pool:
+        pooled = recheck_best(lucky, two, top=3, pool=pool)
+    assert pooled.model.params == checked.model.params
+    np.testing.assert_array_equal(pooled.gaps, checked.gaps)
+    assert recheck_best(lucky, two, top=0) is lucky

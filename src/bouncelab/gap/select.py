@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 
 from bouncelab.gap.fit import (
     K_CHOICES,
+    RECHECK_TOP,
     REFINE_DRAWS,
     RIDE_LOAD_CHOICES,
     EvaluationPool,
@@ -35,6 +36,7 @@ from bouncelab.gap.fit import (
     FitSettings,
     Problem,
     fit_model,
+    recheck_best,
     refine_settings,
     spent_cycles,
 )
@@ -273,6 +275,7 @@ def forward_select(
                 pool,
                 progress,
             )  # fmt: skip
+            current = recheck_best(current, final_problem, RECHECK_TOP, pool)
             accepted[-1] = (accepted[-1][0], current)
     return {
         "baseline": base_fit,

@@ -841,7 +841,7 @@ def refine_settings(
     effects,
     settings: FitSettings,
     fixed: dict | None = None,
-    spent_cycles: float = 0.0,
+    spent: float = 0.0,
 ) -> FitSettings | None:
     """Budget of the refinement of a selected model of ``effects``, or None to skip it.
 
@@ -858,7 +858,7 @@ def refine_settings(
 
     The number of generations is what :data:`REFINE_CYCLES` allows on this run (at most
     :data:`REFINE_MAXITER`), and no more than what the selection's rounds left of
-    :data:`DIAGNOSIS_CYCLES` (``spent_cycles``: simulated cycles the rounds used,
+    :data:`DIAGNOSIS_CYCLES` (``spent``: simulated cycles the rounds used,
     :func:`spent_cycles`); None for models of fewer than :data:`REFINE_MIN_PARAMS`
     continuous parameters or when fewer than :data:`REFINE_MIN_GENERATIONS` generations
     fit the budget (long runs).
@@ -869,7 +869,7 @@ def refine_settings(
     popsize, _maxiter = search_budget(effects, settings)
     population = population_per_param(popsize, REFINE_POPULATION, len(free)) * len(free)
     cycles = problem_cycles(problem) * REFINE_DRAWS
-    budget = min(REFINE_CYCLES, DIAGNOSIS_CYCLES - float(spent_cycles))
+    budget = min(REFINE_CYCLES, DIAGNOSIS_CYCLES - float(spent))
     maxiter = min(REFINE_MAXITER, int(budget / cycles // population) - 1)
     if maxiter < REFINE_MIN_GENERATIONS:
         return None

@@ -124,8 +124,8 @@ def ensemble_gaps(
 ):  # pragma: no cover - compiled  # fmt: skip
     """Per-step gap of each member of a simulated ensemble against the data, in one pass.
 
-    The same numbers as :func:`bouncelab.gap.distances.sample_from_arrays` then
-    :func:`bouncelab.gap.distances.step_distances` member by member, combined as
+    The same numbers as :func:`bouncelab.gap.distances.prepare_flights` of each member's
+    flights then :func:`bouncelab.gap.distances.step_distances` member by member, combined as
     ``alpha * w1_T + (1 - alpha) * scale * mean_k w_k`` (``w_k`` the Wasserstein-1
     distance of the return-map pairs projected on direction ``k``), without the Python
     around them: that was a third of every model evaluation.

@@ -286,32 +286,6 @@ def prepare_flights(
     return FlightSample(flights, projections, directions, steps, gammas)
 
 
-def sample_from_arrays(
-    step: np.ndarray, t: np.ndarray, settled: np.ndarray, directions: np.ndarray
-) -> FlightSample:
-    """A :class:`FlightSample` of one trajectory's flights given as arrays in time order.
-
-    The same sample :func:`prepare_flights` makes of a table of these flights (settled
-    flights only, pairs of consecutive settled flights of one step), without a DataFrame:
-    the inner loop of the fits. ``gammas`` of the sample are NaN (give the steps to
-    :func:`step_distances` directly).
-
-    Parameters
-    ----------
-    step : int64 (n,), t : float64 (n,) rad, settled : bool (n,), in time order.
-    directions : (K, 2), the projection directions (those of the other sample).
-    """
-    step = np.asarray(step, dtype=np.int64)
-    t = np.asarray(t, dtype=np.float64)
-    settled = np.asarray(settled, dtype=bool)
-    flights = _sorted_values(step[settled], t[settled])
-    i = np.flatnonzero((step[1:] == step[:-1]) & settled[1:] & settled[:-1])
-    p_step, x, y = step[i], t[i], t[i + 1]
-    projections = tuple(_sorted_values(p_step, x * c + y * s) for c, s in directions)
-    steps = np.unique(step)
-    return FlightSample(flights, projections, directions, steps, np.full(len(steps), np.nan))
-
-
 def _w1_by_step(
     a: SortedValues, b: SortedValues, grid: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

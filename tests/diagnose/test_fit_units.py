@@ -258,3 +258,31 @@ def test_feedback_search_generations_shrink_on_long_runs():
     assert search_budget(("friction", "feedback"), s, cycles)[1] == allowed
     assert search_budget(("feedback",), s, 1e6)[1] == s.maxiter
     assert search_budget(("friction",), s, 1e6) == (s.popsize, s.maxiter)
+
+
+def test_fit_protocol_cuts_long_runs_to_the_budget():
+    """Reference: the arithmetic of fit_protocol's docstring. A run within max_cycles is
+    untouched; a longer one has every step cut to one length c, the largest whole number
+    with sum(min(cycles, c)) <= max_cycles, steps and Gamma values in their order; no
+    step is cut below settle + min_settled cycles, even if the total then exceeds the
+    budget."""
+    import pandas as pd
+
+    from bouncelab.gap.fit import FIT_PROTOCOL_CYCLES, fit_protocol
+
+    def proto(cycles):
+        n = len(cycles)
+        return pd.DataFrame({"step": np.arange(n), "gamma": np.linspace(1, 8, n), "cycles": cycles})
+
+    shipped = proto([50] * 153)  # raw/sweep_g0-8: exactly the budget
+    assert fit_protocol(shipped, 10).equals(shipped)
+    long = proto([100] * 141)  # benchmarks/configs/seed_protocol_long.yaml
+    cut = fit_protocol(long, 10)
+    assert cut["cycles"].sum() <= FIT_PROTOCOL_CYCLES < (cut["cycles"] + 1).sum()
+    assert cut["cycles"].nunique() == 1
+    assert cut[["step", "gamma"]].equals(long[["step", "gamma"]])
+    mixed = proto([10, 200, 300, 5000])  # short steps keep their length
+    assert fit_protocol(mixed, 10, 1000)["cycles"].tolist() == [10, 200, 300, 490]
+    assert fit_protocol(mixed, 10, 100, min_settled=30)["cycles"].tolist() == [10, 40, 40, 40]
+    assert fit_protocol(mixed, 10, None)["cycles"].tolist() == [10, 200, 300, 5000]
+    assert mixed["cycles"].tolist() == [10, 200, 300, 5000]  # input not modified

@@ -39,6 +39,7 @@ from bouncelab.gap.fit import (
     noise_intervals,
     objective_noise,
     poorly_identified,
+    problem_cycles,
 )
 from bouncelab.gap.regions import segment_regions
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
@@ -417,6 +418,9 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
         "seed": int(seed),
         "n_members": int(problem.n_members),
         "member_spread": MEMBER_SPREAD,
+        # drive cycles one member of a fit simulates, and the longest step after the cut
+        "fit_cycles": int(problem_cycles(problem)),
+        "fit_step_cycles_max": int(problem.protocol["cycles"].max()),
         "min_T": problem.min_T,
         "k_choices": list(K_CHOICES),
         "ride_load_choices": list(RIDE_LOAD_CHOICES),

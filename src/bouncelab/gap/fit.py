@@ -140,6 +140,18 @@ DIAGNOSIS_CYCLES = 15e6
 #: feedback accepted in round 2) round 3 gets 11.
 FEEDBACK_SEARCH_CYCLES = 24 * 21 * 2500.0
 
+#: Most drive cycles one simulation of a fit runs (one ensemble member): on longer runs
+#: every step is cut to the same length (:func:`fit_protocol`), after its settle cycles
+#: and at least :data:`FIT_MIN_SETTLED` settled cycles. Why: a diagnosis costs about
+#: its protocol's cycles (7650 cycles, the shipped ``sweep_g0-8``: 100 s on 2 cores; the
+#: seed's protocol at its longest, 14100 cycles: 180 s against the 2-minute goal), while
+#: a step's flight-time distribution needs tens of settled cycles, not hundreds. The
+#: blind cases (at most 40 cycles a step) and shipped runs are not cut.
+FIT_PROTOCOL_CYCLES = 7650
+
+#: Fewest settled cycles a step keeps in the fits' protocol (:func:`fit_protocol`).
+FIT_MIN_SETTLED = 30
+
 #: Fewer generations than this and the refinement is skipped: less than the selection's
 #: own joint search (10, 20 with feedback) is not expected to improve on it, and the
 #: 4 generations the budget gives the shipped 7650-cycle sweep made its diagnosis 147 s
@@ -254,7 +266,8 @@ class Problem:
         them: a few samples of the recording).
     floor : ndarray (G,), rad, the data's noise floor per step, at least ``min_floor``.
     protocol : the run's steps in recording order (``step``, ``gamma``, ``cycles``), what
-        every simulation runs.
+        every simulation of the fits runs: the run's own, its steps cut short on long
+        runs (:func:`fit_protocol`).
     seed : seed of the start phase of every simulation (common random numbers).
     n_members : ensemble members per evaluation (:func:`member_offsets`).
     n_draws : ensembles per evaluation whose capped per-step gaps are averaged
@@ -330,6 +343,51 @@ def resolution_T(run: Run, samples: float = 2.0) -> float:
     return 2.0 * math.pi * float(run.drive_frequency_hz) * samples / float(run.sample_rate_hz)
 
 
+def fit_protocol(
+    protocol: pd.DataFrame,
+    settle_cycles: int,
+    max_cycles: float | None = FIT_PROTOCOL_CYCLES,
+    min_settled: int = FIT_MIN_SETTLED,
+) -> pd.DataFrame:
+    """The protocol the fits simulate: ``protocol`` with every step cut to at most ``c``
+    drive cycles, ``c`` the largest whole number that keeps the total within
+    ``max_cycles``, but at least ``settle_cycles + min_settled``.
+
+    The step order, Gamma values and the state carried from step to step are the run's;
+    only each step's dwell is shorter, so the simulated settled flights are a smaller
+    sample of the same attractor (a multistable run's history is its sequence of
+    steps, not their lengths, once each step has settled). ``max_cycles`` None or a
+    protocol within it: returned unchanged (a copy).
+
+    Parameters
+    ----------
+    protocol : the run's steps (``step``, ``gamma``, ``cycles``, ...), recording order.
+    settle_cycles : cycles at each step's start whose flights are not compared.
+
+    Returns
+    -------
+    DataFrame, the columns of ``protocol``, ``cycles`` possibly smaller.
+    """
+    out = protocol.copy()
+    cycles = out["cycles"].to_numpy(dtype=np.int64)
+    if max_cycles is None or cycles.sum() <= max_cycles:
+        return out
+    # total with every step cut at c is sum(min(cycles, c)), increasing in c
+    lowest = int(settle_cycles) + int(min_settled)
+    cap = lowest
+    for c in np.unique(np.maximum(cycles, lowest)):
+        if np.minimum(cycles, c).sum() > max_cycles:
+            break
+        cap = int(c)
+    # between two distinct step lengths, the largest cap that still fits
+    spare = max_cycles - np.minimum(cycles, cap).sum()
+    longer = int(np.count_nonzero(cycles > cap))
+    if longer:
+        cap += int(spare // longer)
+    out["cycles"] = np.minimum(cycles, max(cap, lowest))
+    return out
+
+
 def make_problem(
     run: Run,
     flights: pd.DataFrame,
@@ -339,14 +397,16 @@ def make_problem(
     n_members: int = 1,
     heldout_every: int = 3,
     min_floor: float = MIN_FLOOR,
+    max_cycles: float | None = FIT_PROTOCOL_CYCLES,
 ) -> Problem:
     """Prepare a run and its measured flights for fitting (see :class:`Problem`).
 
     The per-step floor is :func:`bouncelab.gap.noise.noise_floor` of the data alone (the
     data against an independent sample of its own size and spread), at least
-    ``min_floor`` rad.
+    ``min_floor`` rad. The fits simulate the run's protocol cut to ``max_cycles`` drive
+    cycles (:func:`fit_protocol`; None: the whole protocol).
     """
-    proto = run_protocol(run, duration_s)
+    proto = fit_protocol(run_protocol(run, duration_s), int(run.settle_cycles), max_cycles)
     steps = proto[["step", "gamma"]].sort_values(["gamma", "step"], kind="stable")
     steps = steps.reset_index(drop=True)
     data_table = flights.reset_index(drop=True)
@@ -450,7 +510,9 @@ def step_gaps(
 
     The same numbers as :func:`bouncelab.gap.distances.gap_table` of :func:`simulate`
     per member, computed from the kernel's arrays without DataFrames (the inner loop of
-    every fit). ``buffer``: the simulation's output array kept between calls.
+    every fit), when the run fits in the fits' protocol; on longer runs the simulations
+    run ``problem.protocol``, each step cut short (:func:`fit_protocol`).
+    ``buffer``: the simulation's output array kept between calls.
     ``shift`` moves every member's Gamma offset by ``shift * MEMBER_SPREAD``: a fresh
     ensemble, another draw of the multistable lottery (:func:`objective_noise`).
 

@@ -47,6 +47,7 @@ from scipy.optimize import minimize
 from scipy.signal import bilinear, butter, lfilter, sosfiltfilt
 
 from bouncelab.flights import extract_run
+from bouncelab.flights.accel import drive_basis
 from bouncelab.rig import read_truth, run_rig
 from bouncelab.runs import load_run, read_recording, step_table
 
@@ -96,13 +97,7 @@ def segments(accel, fs, steps, flights, drive_hz):
 
 
 def drive_columns(t, drive_hz):
-    w = 2.0 * math.pi * drive_hz
-    cols = [np.ones_like(t)]
-    for h in range(1, N_HARMONICS + 1):
-        cols += [np.sin(h * w * t), np.cos(h * w * t)]
-    if abs(HUM_HZ / drive_hz - round(HUM_HZ / drive_hz)) > 1e-6:
-        cols += [np.sin(2 * math.pi * HUM_HZ * t), np.cos(2 * math.pi * HUM_HZ * t)]
-    return np.stack(cols, axis=1)
+    return drive_basis(t, drive_hz, N_HARMONICS, (HUM_HZ,))
 
 
 def design(seg, drive_hz, fn_hz, zeta, spike, lag, a_arm=None):

@@ -34,6 +34,22 @@ ACCEL_COLUMNS = [
 ]
 
 
+def drive_basis(t, freq_hz, n_harmonics=5, hum_hz=(50.0,)) -> np.ndarray:
+    """Least-squares basis of a plate's commanded motion at times ``t`` (n,) s: a
+    constant, ``sin``/``cos`` of the drive (``freq_hz``, Hz) and its harmonics up to
+    ``n_harmonics``, then of each hum frequency (Hz) that is not a drive harmonic.
+    Shape (n, 1 + 2 n_harmonics + 2 n_hum); columns 1 and 2 are the fundamental's sine
+    and cosine."""
+    cols = [np.ones_like(t)]
+    for h in range(1, n_harmonics + 1):
+        w = TWO_PI * freq_hz * h * t
+        cols += [np.sin(w), np.cos(w)]
+    for f in hum_hz:
+        if f > 0 and abs(f / freq_hz - round(f / freq_hz)) > 1e-6:
+            cols += [np.sin(TWO_PI * f * t), np.cos(TWO_PI * f * t)]
+    return np.stack(cols, axis=1)
+
+
 def subtract_drive(t_s, a, freq_hz, n_harmonics=5, hum_hz=(50.0,)):
     """Residual of ``a`` after a least-squares fit of the drive, its harmonics and hum.
 
@@ -50,14 +66,7 @@ def subtract_drive(t_s, a, freq_hz, n_harmonics=5, hum_hz=(50.0,)):
     """
     t = np.asarray(t_s, dtype=np.float64) - float(t_s[0])
     a = np.asarray(a, dtype=np.float64)
-    cols = [np.ones_like(t)]
-    for h in range(1, n_harmonics + 1):
-        w = TWO_PI * freq_hz * h * t
-        cols += [np.sin(w), np.cos(w)]
-    for f in hum_hz:
-        if f > 0 and abs(f / freq_hz - round(f / freq_hz)) > 1e-6:
-            cols += [np.sin(TWO_PI * f * t), np.cos(TWO_PI * f * t)]
-    m = np.stack(cols, axis=1)
+    m = drive_basis(t, freq_hz, n_harmonics, hum_hz)
     keep = np.ones(t.shape, dtype=bool)
     for _ in range(2):  # refit without the impact bursts
         coef, *_ = np.linalg.lstsq(m[keep], a[keep], rcond=None)

@@ -180,6 +180,64 @@ def test_pick_addition_prefers_fewer_parameters_within_the_tie():
     assert rows[pick_addition(rows, 0.0)][0] == "feedback"
 
 
+def test_is_inert_reads_each_effects_strength():
+    from bouncelab.gap.select import INERT, is_inert
+
+    assert set(INERT) == set(EFFECTS)
+    assert is_inert("friction", {"mu": 0.0}) and not is_inert("friction", {"mu": 0.1})
+    assert is_inert("harmonic", {"k": 3.0, "a": 0.001, "psi": 1.0})
+    assert not is_inert("harmonic", {"k": 3.0, "a": 0.05, "psi": 1.0})
+    assert is_inert("gamma_scale", {"s": 1.001}) and not is_inert("gamma_scale", {"s": 0.96})
+    assert not is_inert("feedback", {"f_ratio": 0.6})  # strength not fitted: not inert
+
+
+def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
+    """Reference: a scripted selection (gaps in noise floors, held-out gap = objective).
+    Round 1 takes restitution (10 -> 5). In round 2 friction at mu 0 "shrinks" the gap to
+    1 by refitting e; it is not accepted, restitution takes the refit (1.2, refined
+    without friction), and the harmonic (4.5) is then judged against 1.2 and refused."""
+    from bouncelab.gap import select
+
+    def result(name, params, gap):
+        return FitResult(
+            model=Model.parse(name, params), free=free_params(Model.parse(name).effects),
+            objective=gap, gaps=np.array([gap]), cloud_x=np.zeros((1, 0)),
+            cloud_gaps=np.array([[gap]]), n_evals=1, seconds=0.0,
+        )  # fmt: skip
+
+    script = {
+        "ideal": result("ideal", {}, 10.0),
+        "friction": result("friction", {"mu": 0.2}, 9.0),
+        "restitution": result("restitution", {"e": 0.3}, 5.0),
+        "friction+restitution": result("friction+restitution", {"mu": 0.0, "e": 0.5}, 1.0),
+        "restitution+harmonic": result("restitution+harmonic", {"e": 0.3, "k": 2.0}, 4.5),
+    }
+    calls = []
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, base, _fixed, search, _settings, _seed in jobs:
+            calls.append((name, search))
+            if search == ():  # the refit without the inert effect, from its values
+                assert base == {"e": 0.5}
+                out.append(result(name, base, 1.2))
+            else:
+                out.append(script.get(name, result(name, {}, 9.5)))
+        return out
+
+    monkeypatch.setattr(select, "fit_many", fake_fit_many)
+    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
+    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
+    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    sel = select.forward_select(
+        None, 1.0, candidates=["friction", "restitution", "harmonic"],
+        settings=select.SelectSettings(explained_ratio=0.5),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution"]
+    assert sel["final"].model.params == {"e": 0.5} and sel["final"].objective == 1.2
+    assert ("restitution", ()) in calls and sel["stop"] == "no_improvement"
+
+
 def test_a_noiseless_objective_still_gets_the_data_resolution(monkeypatch):
     """With the objective's own noise 0, the interval still spans the evaluations within
     DATA_RESOLUTION (0.12) mean floors of the best: floors 0.5 rad give a tolerance of

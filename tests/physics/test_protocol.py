@@ -121,21 +121,3 @@ def test_chatter_heavy_protocol_grows_its_buffer():
     df = simulate_protocol(m, [1.1], [20])
     assert len(df) > 4 * 20 + 64
     assert df["chatter"].any()
-
-
-def test_a_flight_across_a_step_boundary_keeps_its_amplitude():
-    """With a second harmonic (k 2, a 0.08, psi 1) the period-1 orbit at Gamma 4.5 takes
-    off at phase 6.25, 0.04 rad before the next step. Reference: the same orbit at one
-    Gamma, whose flights all last 10.69 rad. A step of the amplitude at the boundary made
-    the plate's velocity jump under the body and land it at once (a flight of 0.04 rad in
-    every step, which the virtual rig, ramping its amplitude, never shows); the body now
-    meets the plate at the amplitude it left, and the new one applies from its landing."""
-    m = Model.parse("harmonic", {"k": 2.0, "a": 0.08, "psi": 1.0})
-    one = simulate_protocol(m, [4.5], [60], settle_cycles=10)
-    t_one = one.loc[one["settled"], "T"].to_numpy()
-    assert t_one.min() > 10.0 and np.ptp(t_one[:-1]) < 1e-6  # the orbit; the last is cut
-    df = simulate_protocol(m, [4.5, 4.6, 4.7], [60, 60, 60], settle_cycles=10)
-    settled = df.loc[df["settled"] & (df["step"] < 2)]
-    assert settled["T"].min() > 10.0  # no flight landed by the boundary
-    first = settled.loc[settled["step"] == 0, "T"].to_numpy()
-    np.testing.assert_allclose(first, t_one[0], rtol=1e-3)  # the crossing one included

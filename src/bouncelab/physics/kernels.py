@@ -1081,12 +1081,7 @@ def trajectory(
     A flight row is complete at the next takeoff: its energy terms include its landing
     impact (or the whole summed chatter tail) and the ride that follows.  A change of
     Gamma takes effect at the step's first phase (a multiple of 2 pi, where the
-    fundamental's position is continuous) for a body on the plate; a body in flight
-    meets the plate at the amplitude it took off from, and the new one applies from its
-    landing on, the body's velocity relative to the plate kept.  Why: a shaker ramps its
-    amplitude, while a step at the boundary makes the plate's velocity jump under a body
-    that has just taken off (with harmonics, takeoffs happen just before phase 2 pi) and
-    lands it at once, a flight no recording shows.
+    fundamental's position is continuous) whatever the body is doing.
     """
     mu = par[P_MU]
     e = par[P_E]
@@ -1389,10 +1384,8 @@ def trajectory(
             if k == nsteps - 1:
                 ended = True
                 break
-            # the plate keeps the amplitude the body left until it lands (switched at
-            # the impact, below): a shaker ramps its amplitude, and a step at the boundary
-            # would make the plate's velocity jump under a body that has just taken off
             k += 1
+            g = g_true[k]
             x0 = xb
             v0 = vb
             phis = bound
@@ -1468,12 +1461,6 @@ def trajectory(
             aref = phil
             arm = True
         phi = phil
-        switch = g != g_true[k]  # the flight crossed into a new step: its amplitude now
-        if switch:
-            g = g_true[k]
-            q0, q1, q2, q3 = plate_eval(phil, g, hk, ha, th, arm, ay, av, aref, lam, om, f2)
-            vb += q1 - p1  # the rebound law is relative: keep the body's relative velocity
-            p, p1, p2, p3 = q0, q1, q2, q3
         if eff_e > 0.0 and w > 0.0:
             # rebound: this row is complete, the next flight starts at once
             x0 = p

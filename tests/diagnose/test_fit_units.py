@@ -238,6 +238,52 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     assert ("restitution", ()) in calls and sel["stop"] == "no_improvement"
 
 
+def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
+    """Reference: a scripted selection. Restitution (10 -> 5) then friction (mu 0.2,
+    -> 2) are accepted; the refinement of friction + restitution ends at mu 0.001 (gap
+    1.9): friction is dropped, and restitution takes the local refit without it (1.95)."""
+    from bouncelab.gap import select
+
+    def result(name, params, gap):
+        return FitResult(
+            model=Model.parse(name, params), free=free_params(Model.parse(name).effects),
+            objective=gap, gaps=np.array([gap]), cloud_x=np.zeros((1, 0)),
+            cloud_gaps=np.array([[gap]]), n_evals=1, seconds=0.0,
+        )  # fmt: skip
+
+    seen: dict = {}
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, base, _fixed, search, settings, _seed in jobs:
+            seen[name] = seen.get(name, 0) + 1
+            if search == ():
+                out.append(result(name, base, 1.95))
+            elif name == "friction+restitution" and settings == "refined":
+                out.append(result(name, {"mu": 0.001, "e": 0.5}, 1.9))
+            elif name == "friction+restitution":
+                out.append(result(name, {"mu": 0.2, "e": 0.45}, 2.0))
+            elif name == "restitution":
+                out.append(result(name, {"e": 0.3}, 5.0))
+            else:
+                out.append(result(name, {}, 9.5 if name != "ideal" else 10.0))
+        return out
+
+    monkeypatch.setattr(select, "fit_many", fake_fit_many)
+    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
+    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: "refined")
+    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    monkeypatch.setattr(select, "replace", lambda problem, **k: problem)
+    monkeypatch.setattr(select, "recheck_best", lambda fit, *a, **k: fit)
+    sel = select.forward_select(
+        None, 1.0, candidates=["friction", "restitution", "harmonic"],
+        settings=select.SelectSettings(explained_ratio=0.5),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution"]
+    assert sel["final"].model.params == {"e": 0.5} and sel["final"].objective == 1.95
+    assert sel["accepted"][0][1] is sel["final"]
+
+
 def test_a_noiseless_objective_still_gets_the_data_resolution(monkeypatch):
     """With the objective's own noise 0, the interval still spans the evaluations within
     DATA_RESOLUTION (0.12) mean floors of the best: floors 0.5 rad give a tolerance of

@@ -18,7 +18,8 @@ and selection stops when no addition passes, when the current gap is already wit
 strength sits at its null value (:data:`INERT`: friction with mu 0) adds nothing but a
 better refit of the effects already taken: it is not accepted; the current model takes
 that refit's values (refined locally without the inert effect) when they do better,
-and the next addition is judged against it. The selected model's
+and the next addition is judged against it; an effect the final refinement takes to its
+null value is dropped the same way. The selected model's
 parameters are then refined (:func:`bouncelab.gap.fit.refine_settings`). All gaps here are
 weighted means over held-out steps in radians (:meth:`bouncelab.gap.fit.Problem.mean`);
 the noise floor is the same mean of the data's own floor.
@@ -324,6 +325,14 @@ def forward_select(
             )  # fmt: skip
             current = recheck_best(current, final_problem, RECHECK_TOP, pool)
             accepted[-1] = (accepted[-1][0], current)
+            if is_inert(accepted[-1][0], current.model.params):
+                # the refinement took the last effect to its null value: not an effect
+                eff = accepted.pop()[0]
+                if accepted:
+                    current = _without(final_problem, current, eff, fixed, fit_settings, seed, pool)
+                    accepted[-1] = (accepted[-1][0], current)
+                else:
+                    current, final_problem, refined = base_fit, problem, None
     return {
         "baseline": base_fit,
         "rounds": rounds,

@@ -191,6 +191,16 @@ def test_is_inert_reads_each_effects_strength():
     assert not is_inert("feedback", {"f_ratio": 0.6})  # strength not fitted: not inert
 
 
+def scripted_fit(name: str, params: dict, gap: float) -> FitResult:
+    """A fit of ``name`` at ``params`` whose objective (and one-step gap) is ``gap``: the
+    stand-in for ``fit_many``'s results in the scripted selections below."""
+    return FitResult(
+        model=Model.parse(name, params), free=free_params(Model.parse(name).effects),
+        objective=gap, gaps=np.array([gap]), cloud_x=np.zeros((1, 0)),
+        cloud_gaps=np.array([[gap]]), n_evals=1, seconds=0.0,
+    )  # fmt: skip
+
+
 def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     """Reference: a scripted selection (gaps in noise floors, held-out gap = objective).
     Round 1 takes restitution (10 -> 5). In round 2 friction at mu 0 "shrinks" the gap to
@@ -198,19 +208,12 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     without friction), and the harmonic (4.5) is then judged against 1.2 and refused."""
     from bouncelab.gap import select
 
-    def result(name, params, gap):
-        return FitResult(
-            model=Model.parse(name, params), free=free_params(Model.parse(name).effects),
-            objective=gap, gaps=np.array([gap]), cloud_x=np.zeros((1, 0)),
-            cloud_gaps=np.array([[gap]]), n_evals=1, seconds=0.0,
-        )  # fmt: skip
-
     script = {
-        "ideal": result("ideal", {}, 10.0),
-        "friction": result("friction", {"mu": 0.2}, 9.0),
-        "restitution": result("restitution", {"e": 0.3}, 5.0),
-        "friction+restitution": result("friction+restitution", {"mu": 0.0, "e": 0.5}, 1.0),
-        "restitution+harmonic": result("restitution+harmonic", {"e": 0.3, "k": 2.0}, 4.5),
+        "ideal": scripted_fit("ideal", {}, 10.0),
+        "friction": scripted_fit("friction", {"mu": 0.2}, 9.0),
+        "restitution": scripted_fit("restitution", {"e": 0.3}, 5.0),
+        "friction+restitution": scripted_fit("friction+restitution", {"mu": 0.0, "e": 0.5}, 1.0),
+        "restitution+harmonic": scripted_fit("restitution+harmonic", {"e": 0.3, "k": 2.0}, 4.5),
     }
     calls = []
 
@@ -220,9 +223,9 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
             calls.append((name, search))
             if search == ():  # the refit without the inert effect, from its values
                 assert base == {"e": 0.5}
-                out.append(result(name, base, 1.2))
+                out.append(scripted_fit(name, base, 1.2))
             else:
-                out.append(script.get(name, result(name, {}, 9.5)))
+                out.append(script.get(name, scripted_fit(name, {}, 9.5)))
         return out
 
     monkeypatch.setattr(select, "fit_many", fake_fit_many)
@@ -244,29 +247,19 @@ def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
     1.9): friction is dropped, and restitution takes the local refit without it (1.95)."""
     from bouncelab.gap import select
 
-    def result(name, params, gap):
-        return FitResult(
-            model=Model.parse(name, params), free=free_params(Model.parse(name).effects),
-            objective=gap, gaps=np.array([gap]), cloud_x=np.zeros((1, 0)),
-            cloud_gaps=np.array([[gap]]), n_evals=1, seconds=0.0,
-        )  # fmt: skip
-
-    seen: dict = {}
-
     def fake_fit_many(jobs, pool=None, progress=None):
         out = []
         for _problem, name, base, _fixed, search, settings, _seed in jobs:
-            seen[name] = seen.get(name, 0) + 1
             if search == ():
-                out.append(result(name, base, 1.95))
+                out.append(scripted_fit(name, base, 1.95))
             elif name == "friction+restitution" and settings == "refined":
-                out.append(result(name, {"mu": 0.001, "e": 0.5}, 1.9))
+                out.append(scripted_fit(name, {"mu": 0.001, "e": 0.5}, 1.9))
             elif name == "friction+restitution":
-                out.append(result(name, {"mu": 0.2, "e": 0.45}, 2.0))
+                out.append(scripted_fit(name, {"mu": 0.2, "e": 0.45}, 2.0))
             elif name == "restitution":
-                out.append(result(name, {"e": 0.3}, 5.0))
+                out.append(scripted_fit(name, {"e": 0.3}, 5.0))
             else:
-                out.append(result(name, {}, 9.5 if name != "ideal" else 10.0))
+                out.append(scripted_fit(name, {}, 9.5 if name != "ideal" else 10.0))
         return out
 
     monkeypatch.setattr(select, "fit_many", fake_fit_many)

@@ -18,6 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from runs_fixtures import DURATION_S, FORMATS, FS, STEPS, known_signals
 
+from bouncelab.errors import BouncelabError
 from bouncelab.runs import ROLES, Run, load_run, read_recording, step_table
 
 LSB16 = 1.0 / 32768
@@ -76,6 +77,35 @@ def test_time_column_round_trip(make_run, fmt):
     assert rec.duration_s == pytest.approx(100.0 + DURATION_S, rel=1e-12)
     assert rec.times is rec.time_s
     assert "time_s" not in rec.channels
+
+
+@pytest.mark.parametrize("decimals", [2, 3])
+def test_rounded_time_column_reads_as_the_regular_axis(make_run, decimals, caplog):
+    """A time_s printed with too few digits (LabVIEW's %.3f: consecutive samples share a
+    millisecond) is read as first time + index / fs, with a warning; the flights then
+    sit where the samples are, not on the rounding's staircase."""
+    n = int(FS * DURATION_S)
+    exact = 100.0 + np.arange(n) / FS
+    t = np.round(exact, decimals)
+    assert (np.diff(t) == 0).any()  # the case: ties
+    steps = [{"t_s": 100.0 + ts, "gamma": g} for ts, g in STEPS]
+    run_dir = make_run("csv", time_s=t, yaml_overrides={"gamma_steps": steps})
+    with caplog.at_level("WARNING"):
+        rec = read_recording(run_dir)
+    # the regular axis from the median offset: within the printed resolution of the truth
+    np.testing.assert_allclose(rec.time_s, exact, rtol=0, atol=0.5 * 10.0**-decimals)
+    assert np.all(np.diff(rec.time_s) > 0)
+    assert "too few digits" in caplog.text
+
+
+def test_rounded_time_column_with_a_jump_is_still_an_error(make_run):
+    """Rounding explains ties, not a jump: a rounded axis with 10 ms missing is refused."""
+    n = int(FS * DURATION_S)
+    exact = np.arange(n) / FS
+    exact[n // 2 :] += 0.01
+    run_dir = make_run("csv", time_s=np.round(exact, 3))
+    with pytest.raises(BouncelabError, match="time_s is not strictly increasing"):
+        read_recording(run_dir)
 
 
 @pytest.mark.parametrize("compressed", [False, True])

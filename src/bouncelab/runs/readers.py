@@ -4,7 +4,9 @@
 role and runs every check that needs the file: sample rate and channel presence
 (named against ``run.yaml``), then the data checks (empty, truncated or corrupt,
 NaN or infinite samples, ``time_s`` not strictly increasing, steps or release after
-the end; named against the recording) so that every consumer gets them.
+the end; named against the recording) so that every consumer gets them. A ``time_s``
+printed with too few digits (ties, within its resolution of a regular axis) is read as
+that regular axis (:func:`rounded_time_axis`).
 
 Dtypes: audio channels are float32 (16- and 24-bit PCM samples are exact in float32,
 the ``full_scale_v`` factor then rounds to a relative 6e-8; half the memory of float64
@@ -24,7 +26,7 @@ import os
 import struct
 import zipfile
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -472,6 +474,56 @@ def _common_length(channels: dict[str, np.ndarray], time_s, path: Path) -> int:
     return next(iter(lengths.values()))
 
 
+#: A rounded ``time_s`` may stray from the regular axis by at most this many of its
+#: own steps (the 99th percentile of its positive steps, i.e. its printed resolution).
+ROUNDED_TIME_TOLERANCE = 1.01
+
+
+def rounded_time_axis(t: np.ndarray, fs: float) -> np.ndarray | None:
+    """The regular axis that a ``time_s`` printed with too few digits stands for.
+
+    Exported spreadsheets often print time with fewer digits than the sampling needs
+    (LabVIEW's ``%.3f`` is a millisecond; ``%.6g`` is 0.1 ms past 10 s): consecutive
+    samples then share a time. Such a column still says where the recording starts,
+    and that no samples are missing. When ``t`` (shape ``(n,)``, s) never decreases,
+    has ties, and stays within its own resolution of ``t0 + index / fs``, this returns
+    that axis (``t0`` the median offset); otherwise ``None`` (a column that goes
+    backwards, or jumps, is an error the caller reports). A strictly increasing ``t``
+    is returned as ``None`` too: it is used as it is.
+    """
+    d = np.diff(t)
+    if d.size == 0 or (d > 0).all() or (d < 0).any() or not (d > 0).any():
+        return None
+    resolution = float(np.percentile(d[d > 0], 99))
+    regular = np.arange(t.shape[0], dtype=np.float64) / fs
+    t0 = float(np.median(t - regular))
+    if np.max(np.abs(t - (t0 + regular))) > ROUNDED_TIME_TOLERANCE * max(resolution, 1.0 / fs):
+        return None
+    return t0 + regular
+
+
+def _unround_time(rec: Recording) -> Recording:
+    """``rec`` with a rounded ``time_s`` replaced by its regular axis (a warning logged)."""
+    if rec.time_s is None:
+        return rec
+    t = rec.time_s
+    if not np.isfinite(t).all():
+        return rec
+    regular = rounded_time_axis(t, rec.fs)
+    if regular is None:
+        return rec
+    ties = int(np.count_nonzero(np.diff(t) == 0))
+    logging.getLogger(__name__).warning(
+        "%s: time_s is printed with too few digits (%d repeated values); using "
+        "%.9g s + index / %g Hz",
+        rec.path,
+        ties,
+        regular[0],
+        rec.fs,
+    )
+    return replace(rec, time_s=regular)
+
+
 def check_samples(run: Run, rec: Recording) -> None:
     """Data checks shared by every format; raises BouncelabError.
 
@@ -560,7 +612,7 @@ def read_recording(run: Run | str | os.PathLike, roles=ROLES) -> Recording:
     if unknown:
         raise ValueError(f"unknown channel role(s) {unknown}; use {ROLES}")
     roles = tuple(r for r in ROLES if r in roles and r in run.channels)
-    rec = _READERS[run.format](run, roles)
+    rec = _unround_time(_READERS[run.format](run, roles))
     check_samples(run, rec)
     return rec
 

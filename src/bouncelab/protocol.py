@@ -15,6 +15,7 @@ import pandas as pd
 
 from bouncelab.errors import BouncelabError
 from bouncelab.physics import Model, simulate_protocol
+from bouncelab.physics.simulate import seen_flights
 from bouncelab.runs import Run, step_table
 
 TWO_PI = 2.0 * math.pi
@@ -46,6 +47,7 @@ def simulate_run(
     duration_s: float,
     n_starts: int = 1,
     seed: int = 0,
+    min_contact: float = 0.0,
 ) -> pd.DataFrame:
     """The model under the run's protocol, as a flight table like the measured one.
 
@@ -56,6 +58,8 @@ def simulate_run(
     duration_s : end of the recording (s), which ends the last step.
     n_starts : ensemble of start phases (each member runs the whole protocol).
     seed : seed of the start phases.
+    min_contact : rad; > 0: the flights as a continuity circuit shows them when every
+        contact lasts at least that long (:func:`bouncelab.physics.simulate.seen_flights`).
 
     Returns
     -------
@@ -76,6 +80,7 @@ def simulate_run(
         seed=seed,
         n_starts=n_starts,
     )
+    sim = seen_flights(sim, min_contact)
     # phase at which each model step starts, to put flights on the recording's clock
     phase_start = TWO_PI * np.concatenate([[0], np.cumsum(proto["cycles"].to_numpy())[:-1]])
     idx = sim["step"].to_numpy().astype(int)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from bouncelab.errors import BouncelabError
@@ -20,6 +21,7 @@ from bouncelab.gap.fit import (
     free_params,
     heldout_mask,
     intervals,
+    min_contact_T,
     noise_intervals,
     poorly_identified,
 )
@@ -383,3 +385,46 @@ def test_fit_protocol_cuts_long_runs_to_the_budget():
     assert fit_protocol(mixed, 10, 100, min_settled=30)["cycles"].tolist() == [10, 40, 40, 40]
     assert fit_protocol(mixed, 10, None)["cycles"].tolist() == [10, 200, 300, 5000]
     assert mixed["cycles"].tolist() == [10, 200, 300, 5000]  # input not modified
+
+
+def _contact_table(contacts_s, gamma=2.0, flight_s=0.02):
+    """A flight table of one settled step whose contacts (between flights) are given."""
+    t, rows = 0.0, []
+    for c in contacts_s:
+        rows.append({"step": 0, "gamma": gamma, "settled": True,
+                     "t_takeoff_s": t, "t_landing_s": t + flight_s})  # fmt: skip
+        t += flight_s + c
+    return pd.DataFrame(rows)
+
+
+class _Rate:
+    """The two numbers of a run that min_contact_T reads."""
+
+    sample_rate_hz = 20000.0
+    drive_frequency_hz = 30.0
+
+
+def test_min_contact_reads_the_floor_of_the_contacts():
+    """Bounces of 100 us (2 samples at 20 kHz) with longer rides mixed in: 100 us in rad
+    of drive phase (2 pi 30 Hz x 1e-4 s = 0.01885 rad)."""
+    rng = np.random.default_rng(0)
+    contacts = np.concatenate([1e-4 + 2e-6 * rng.standard_normal(300), rng.uniform(1e-3, 2e-2, 200)])
+    got = min_contact_T(_Rate(), _contact_table(rng.permutation(contacts)))
+    assert got == pytest.approx(2 * np.pi * 30.0 * 1e-4, rel=0.05)
+
+
+@pytest.mark.parametrize(
+    "contacts, why",
+    [
+        (np.full(300, 3e-5), "shorter than 1.5 samples: the edges cannot resolve it"),
+        (np.linspace(0.0, 1e-2, 300), "rides from zero up: no floor"),
+        (np.full(20, 1e-4), "too few contacts"),
+    ],
+)
+def test_min_contact_is_zero_when_there_is_none_to_read(contacts, why):
+    assert min_contact_T(_Rate(), _contact_table(contacts)) == 0.0, why
+
+
+def test_min_contact_ignores_steps_below_gamma_one():
+    """Below Gamma 1 there are no flights to speak of; contacts there are not read."""
+    assert min_contact_T(_Rate(), _contact_table(np.full(300, 1e-4), gamma=0.9)) == 0.0

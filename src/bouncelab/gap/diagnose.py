@@ -422,6 +422,10 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
         "fit_cycles": int(problem_cycles(problem)),
         "fit_step_cycles_max": int(problem.protocol["cycles"].max()),
         "min_T": problem.min_T,
+        # the data's shortest contact, the model's flights are read with (0: unresolved)
+        "min_contact": problem.min_contact,
+        "min_contact_s": problem.min_contact
+        / (2.0 * math.pi * float(problem.run.drive_frequency_hz)),
         "k_choices": list(K_CHOICES),
         "ride_load_choices": list(RIDE_LOAD_CHOICES),
         "bounds": {p: list(v[1:]) for e in EFFECTS.values() for p, v in e.items()},

@@ -152,6 +152,15 @@ FIT_PROTOCOL_CYCLES = 7650
 #: Fewest settled cycles a step keeps in the fits' protocol (:func:`fit_protocol`).
 FIT_MIN_SETTLED = 30
 
+#: The data's shortest contact (:func:`min_contact_T`): this quantile of the contacts
+#: between flights, read as the model's contact time when it is a floor (the 1 %
+#: quantile at least ``CONTACT_FLOOR_RATIO`` of it), spans ``CONTACT_MIN_SAMPLES``
+#: samples and there are ``CONTACT_MIN_COUNT`` contacts.
+CONTACT_QUANTILE = 0.05
+CONTACT_FLOOR_RATIO = 0.7
+CONTACT_MIN_SAMPLES = 1.5
+CONTACT_MIN_COUNT = 50
+
 #: Fewer generations than this and the refinement is skipped: less than the selection's
 #: own joint search (10, 20 with feedback) is not expected to improve on it, and the
 #: 4 generations the budget gives the shipped 7650-cycle sweep made its diagnosis 147 s
@@ -273,6 +282,9 @@ class Problem:
     n_draws : ensembles per evaluation whose capped per-step gaps are averaged
         (:func:`step_gaps`); 1 in the selection, :data:`REFINE_DRAWS` in the refinement
         of the selected model (:func:`refine_settings`).
+    min_contact : rad, the data's shortest contact (:func:`min_contact_T`): every
+        simulation is read as the continuity circuit would show it (each contact at
+        least this long); 0 when the recording does not resolve one.
     """
 
     run: Run
@@ -287,6 +299,7 @@ class Problem:
     seed: int = 0
     n_members: int = 1
     n_draws: int = 1
+    min_contact: float = 0.0
 
     @cached_property
     def kernel_inputs(self) -> KernelInputs:
@@ -341,6 +354,41 @@ def heldout_mask(n_steps: int, every: int = 3) -> np.ndarray:
 def resolution_T(run: Run, samples: float = 2.0) -> float:
     """Shortest flight the recording resolves: ``samples`` samples in radians of drive phase."""
     return 2.0 * math.pi * float(run.drive_frequency_hz) * samples / float(run.sample_rate_hz)
+
+
+def min_contact_T(run: Run, flights: pd.DataFrame) -> float:
+    """The data's shortest contact, rad of drive phase; 0 when there is none to read.
+
+    Every impact of a real body lasts a finite time, during which the continuity circuit
+    is closed; the model's impacts are instantaneous. So a flight that starts at an
+    impact is seen shorter by that time, and a rebound that lands again within it is not
+    seen at all. The contacts between consecutive settled flights of one step at
+    Gamma > 1 then pile up at the contact time (every bounce, and every ride shorter
+    than it), with nothing below: the :data:`CONTACT_QUANTILE` quantile is read as the
+    contact time when the 1 % quantile is at least :data:`CONTACT_FLOOR_RATIO` of it (a
+    floor, not the low tail of rides that start at zero, as in a model's own flights)
+    and it spans at least :data:`CONTACT_MIN_SAMPLES` samples (a sub-sample contact
+    shows as about one sample: the edges cannot resolve it). 0 otherwise, and with
+    fewer than :data:`CONTACT_MIN_COUNT` contacts.
+    """
+    if flights.empty:
+        return 0.0
+    f = flights.sort_values(["step", "t_takeoff_s"], kind="stable")
+    step = f["step"].to_numpy()
+    same = step[1:] == step[:-1]
+    same &= f["settled"].to_numpy(dtype=bool)[1:]
+    same &= f["gamma"].to_numpy(dtype=float)[1:] > 1.0
+    takeoff = f["t_takeoff_s"].to_numpy(dtype=float)
+    contact = takeoff[1:] - f["t_landing_s"].to_numpy(dtype=float)[:-1]
+    contact = contact[same & (contact >= 0)]
+    if contact.size < CONTACT_MIN_COUNT:
+        return 0.0
+    lowest, shortest = np.quantile(contact, [0.01, CONTACT_QUANTILE])
+    if lowest < CONTACT_FLOOR_RATIO * shortest:
+        return 0.0
+    if shortest * float(run.sample_rate_hz) < CONTACT_MIN_SAMPLES:
+        return 0.0
+    return 2.0 * math.pi * float(run.drive_frequency_hz) * float(shortest)
 
 
 def fit_protocol(
@@ -425,6 +473,7 @@ def make_problem(
         floor=np.maximum(floor.to_numpy(dtype=float), min_floor),
         seed=int(seed),
         n_members=int(n_members),
+        min_contact=min_contact_T(run, data_table),
     )
 
 
@@ -455,7 +504,11 @@ def simulate(problem: Problem, model: Model, member: int = 0) -> pd.DataFrame:
     """
     offset = float(member_offsets(member + 1)[member])
     sim = simulate_run(
-        problem.run, member_model(model, offset), problem.duration_s, seed=problem.seed
+        problem.run,
+        member_model(model, offset),
+        problem.duration_s,
+        seed=problem.seed,
+        min_contact=problem.min_contact,
     )
     return sim.loc[sim["T"].to_numpy(dtype=float) >= problem.min_T].reset_index(drop=True)
 
@@ -542,6 +595,7 @@ def _one_draw_gaps(
         gamma_factors=1.0 + member_offsets(max(1, problem.n_members)) + shift * MEMBER_SPREAD,
         chatter_eps=resolution_T(problem.run, CHATTER_SAMPLES),
         buffer=buffer,
+        min_contact=problem.min_contact,
     )
     k = problem.kernel_inputs
     gaps = ensemble_gaps(

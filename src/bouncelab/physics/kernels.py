@@ -1526,3 +1526,35 @@ def run_many(
         rows[i] = rw
         status[i] = st
     return rows, status
+
+
+@njit(cache=True, error_model="numpy")
+def close_contacts(member, t_takeoff, T, min_contact):
+    """The flights a continuity circuit shows when each contact lasts at least ``min_contact``.
+
+    A real body is in contact for a finite time at every impact (tens to hundreds of
+    microseconds), which the model's instantaneous impacts lack; the circuit opens at
+    ``max(takeoff, previous landing + min_contact)``, and a flight that lands before it
+    would open is not seen at all (its contact runs on). ``member`` (n,) int, flights in
+    time order within each member; ``t_takeoff`` (n,) absolute takeoff phase, ``T`` (n,)
+    flight time, ``min_contact`` >= 0, all rad. Returns ``(seen, t_open, T_seen)``,
+    shape (n,): bool, the circuit's opening phase and the flight time it shows.
+    """
+    n = T.shape[0]
+    seen = np.zeros(n, dtype=np.bool_)
+    t_open = t_takeoff.copy()
+    T_seen = T.copy()
+    last_member = -1
+    last_landing = -np.inf
+    for i in range(n):
+        if member[i] != last_member:
+            last_member = member[i]
+            last_landing = -np.inf
+        landing = t_takeoff[i] + T[i]
+        opens = max(t_takeoff[i], last_landing + min_contact)
+        if opens < landing:
+            seen[i] = True
+            t_open[i] = opens
+            T_seen[i] = landing - opens
+        last_landing = landing
+    return seen, t_open, T_seen

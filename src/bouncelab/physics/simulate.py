@@ -287,6 +287,7 @@ def protocol_flight_times(
     gamma_factors=(1.0,),
     chatter_eps: float = CHATTER_EPS,
     buffer: OutputBuffer | None = None,
+    min_contact: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """The lab protocol for an ensemble whose members' true Gamma is scaled, as arrays.
 
@@ -298,6 +299,8 @@ def protocol_flight_times(
     (default :data:`CHATTER_EPS`); a caller that cannot resolve such flights may raise
     it to save the kernel the long geometric tails. ``buffer`` keeps the kernel's
     output array between calls (:class:`OutputBuffer`); the results never share its memory.
+    ``min_contact`` (rad) > 0: the flights as a continuity circuit shows them when every
+    contact lasts at least that long (:func:`seen_flights`).
 
     Returns
     -------
@@ -337,7 +340,34 @@ def protocol_flight_times(
     }
     res = {k: out[c][keep].astype(t) for k, (c, t) in cols.items()}
     res["settled"] = out[K.C_SETTLED][keep] > 0.5
+    if min_contact > 0.0:
+        seen, _t_open, T_seen = K.close_contacts(
+            res["member"], out[K.C_TTO][keep], res["T"], float(min_contact)
+        )
+        res["T"] = T_seen
+        res = {k: v[seen] for k, v in res.items()}
     return res
+
+
+def seen_flights(sim: pd.DataFrame, min_contact: float) -> pd.DataFrame:
+    """A protocol's flight table as a continuity circuit shows it when every contact
+    lasts at least ``min_contact`` rad (:func:`bouncelab.physics.kernels.close_contacts`).
+
+    ``sim``: :func:`simulate_protocol` output (members in ``start``, time order within
+    each). Flights that land before the circuit opens are dropped; the others take off,
+    as seen, when it opens: ``T``, ``t_takeoff`` and ``phi_takeoff`` change, the body's
+    state and energies (the physics) do not. ``min_contact`` 0 returns ``sim`` itself.
+    """
+    if not min_contact > 0.0 or sim.empty:
+        return sim
+    seen, t_open, T_seen = K.close_contacts(
+        sim["start"].to_numpy(dtype=np.int64),
+        sim["t_takeoff"].to_numpy(dtype=np.float64),
+        sim["T"].to_numpy(dtype=np.float64),
+        float(min_contact),
+    )
+    out = sim.assign(T=T_seen, t_takeoff=t_open, phi_takeoff=np.mod(t_open, 2.0 * math.pi))
+    return out.loc[seen].reset_index(drop=True)
 
 
 def simulate_from(

@@ -408,7 +408,8 @@ def test_min_contact_reads_the_floor_of_the_contacts():
     """Bounces of 100 us (2 samples at 20 kHz) with longer rides mixed in: 100 us in rad
     of drive phase (2 pi 30 Hz x 1e-4 s = 0.01885 rad)."""
     rng = np.random.default_rng(0)
-    contacts = np.concatenate([1e-4 + 2e-6 * rng.standard_normal(300), rng.uniform(1e-3, 2e-2, 200)])
+    bounces = 1e-4 + 2e-6 * rng.standard_normal(300)
+    contacts = np.concatenate([bounces, rng.uniform(1e-3, 2e-2, 200)])
     got = min_contact_T(_Rate(), _contact_table(rng.permutation(contacts)))
     assert got == pytest.approx(2 * np.pi * 30.0 * 1e-4, rel=0.05)
 

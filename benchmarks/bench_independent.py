@@ -1,0 +1,128 @@
+"""The gap diagnosis on recordings from a generator that is not our rig.
+
+Acceptance of issue 6 runs ``bouncelab diagnose`` on recordings made independently of
+the virtual rig. ``independent_rig.py`` (beside this file) makes such recordings another
+way (hard contact with a finite closed time, fixed-step integration, instant Gamma
+switches off the drive cycles, impacts-only armature, instantaneous sampling). Each case
+below is generated in a temporary folder, diagnosed from the run folder alone, and only
+then scored against the generator's truth: the effects selected against the true ones,
+the relative parameter errors (psi: of 2 pi; the discrete k is excluded), the verdict,
+and the time.
+
+Measures, prints and writes ``benchmarks/results/independent.json``.
+Run: ``python benchmarks/bench_independent.py [--only NAME ...] [--workers 2]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bouncelab.gap.diagnose import diagnose_run
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from independent_rig import make_case  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "results" / "independent.json"
+
+CASES = {
+    "null": {},
+    "null_10khz": {"fs": 10000.0, "g1": 5.0, "seed": 12},
+    "friction_27hz_off_cycle_csv": {
+        "f": 27.0, "g1": 5.0, "t0": 0.37, "mu": 0.2, "format": "csv", "seed": 2,
+    },
+    "friction_noisy_44khz": {"mu": 0.3, "noise_v": 0.2, "fs": 44100.0, "seed": 13},
+    "restitution_33hz_contact_high": {"f": 33.0, "e": 0.45, "contact_high": True, "seed": 3},
+    "restitution_contact_350us": {"e": 0.45, "contact_s": 3.5e-4, "seed": 11},
+    "friction_restitution": {"mu": 0.15, "e": 0.3, "seed": 16},
+    "harmonic_k3": {"g1": 6.0, "a": 0.07, "k": 3.0, "psi": 2.0, "seed": 4},
+    "harmonic_k2_35hz": {"f": 35.0, "g1": 5.0, "a": 0.1, "k": 2.0, "psi": 4.0, "seed": 14},
+    "gamma_scale_25hz": {"f": 25.0, "g1": 6.0, "s": 0.92, "seed": 5},
+    "gamma_scale_20hz": {"f": 20.0, "s": 1.08, "step_s": 3.0, "seed": 15},
+    "feedback_impacts_only": {"mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.05, "seed": 6},
+    "seed_like_impacts_only": {
+        "mu": 0.29, "e": 0.5, "mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.04, "seed": 7,
+    },
+    "delay_2ms": {"delay_s": 0.002, "seed": 17},
+}  # fmt: skip
+
+
+def score(truth: dict, diag: dict) -> dict:
+    """Selected against true effects, relative parameter errors, verdict."""
+    true = truth["effects"]
+    fitted = diag["steps"][-1]["params"] if diag["steps"] else {}
+    errors = {}
+    for params in true.values():
+        for name, value in params.items():
+            if name == "k" or name not in fitted:
+                continue
+            if name == "psi":
+                d = (fitted[name] - value + math.pi) % (2 * math.pi) - math.pi
+                errors[name] = abs(d) / (2 * math.pi)
+            else:
+                errors[name] = abs(fitted[name] - value) / abs(value)
+    out_of_library = truth["delay_s"] > 0
+    return {
+        "true": sorted(true),
+        "selected": diag["selected"],
+        "set_right": sorted(diag["selected"]) == sorted(true),
+        "top_right": bool(diag["selected"]) and diag["selected"][0] in true
+        if true
+        else not diag["selected"],
+        "unexplained": diag["unexplained"],
+        "verdict_right": diag["unexplained"] == out_of_library,
+        "param_rel_error": errors,
+        "final_floors": diag["final_gap"] / diag["noise_floor"],
+        "min_contact_s": diag["design"].get("min_contact_s"),
+        "fitted": fitted,
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--only", nargs="*", default=None)
+    p.add_argument("--workers", type=int, default=2)
+    args = p.parse_args()
+    names = args.only or list(CASES)
+    record = json.loads(OUT.read_text()) if OUT.exists() and args.only else {"cases": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            run_dir = Path(tmp) / name
+            t0 = time.perf_counter()
+            make_case(run_dir, **CASES[name])
+            t1 = time.perf_counter()
+            diag = diagnose_run(run_dir, workers=args.workers, progress=False)
+            t2 = time.perf_counter()
+            truth = json.loads(run_dir.with_name(name + ".truth.json").read_text())
+            s = score(truth, diag) | {"generate_s": t1 - t0, "diagnose_s": t2 - t1}
+            record["cases"][name] = s
+            errs = ", ".join(f"{k} {100 * v:.1f} %" for k, v in s["param_rel_error"].items())
+            print(
+                f"{name:32s} true {s['true']} selected {s['selected']} "
+                f"{'unexplained' if s['unexplained'] else 'explained'} "
+                f"{s['final_floors']:.2f} floors; {errs}; {t2 - t1:.0f} s",
+                flush=True,
+            )
+    cases = record["cases"].values()
+    record["summary"] = {
+        "cases": len(record["cases"]),
+        "set_right": sum(c["set_right"] for c in cases),
+        "verdict_right": sum(c["verdict_right"] for c in cases),
+        "params_within_15pct": sum(v <= 0.15 for c in cases for v in c["param_rel_error"].values()),
+        "params": sum(len(c["param_rel_error"]) for c in cases),
+        "max_diagnose_s": max(c["diagnose_s"] for c in cases),
+    }
+    record["machine"] = {"cpus": platform.machine(), "python": platform.python_version()}
+    OUT.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
+    print(json.dumps(record["summary"]))
+
+
+if __name__ == "__main__":
+    main()

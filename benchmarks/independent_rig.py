@@ -1,0 +1,199 @@
+"""A second recording generator, written without bouncelab's physics or rig code.
+
+The virtual rig (``bouncelab.rig``) is the project's own; acceptance is checked on
+recordings made elsewhere. This generator makes them differently on purpose, so that
+what the diagnosis assumes of our rig shows up:
+
+- hard contact: instantaneous impacts (restitution ``e``), a body that sticks once its
+  rebound is slower than ``stick_v``; the continuity circuit stays closed ``contact_s``
+  after every impact (a real impact lasts tens to hundreds of microseconds);
+- fixed-step integration (``dt`` = 2 us) of flight under gravity and Coulomb friction;
+- Gamma switched instantly at each step's ``t_s``, wherever the drive phase is (``t0``
+  puts the steps off the drive cycles);
+- a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
+- the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV.
+
+Use: ``python benchmarks/independent_rig.py OUT_DIR [--mu 0.2 --e 0.4 ...]`` writes
+``OUT_DIR/run.yaml`` and the recording, and ``OUT_DIR.truth.json`` beside the folder
+(never inside it). ``bench_independent.py`` runs the diagnosis on a set of such cases.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numba
+import numpy as np
+import pandas as pd
+import soundfile as sf
+import yaml
+
+G = 9.81  # m/s^2
+
+
+@numba.njit(cache=True)
+def integrate(
+    t_end, dt, w, amp_t, amp_v, mu, e, hk, ha, hpsi, mass_ratio, f_ratio, zeta, contact_s,
+    stick_v, fs,
+):  # fmt: skip
+    """Contact state (1.0 closed) at each sample instant ``k / fs``, shape (n,), and the
+    number of impacts. SI units; ``amp_t``/``amp_v``: the plate amplitude (m) from each
+    time on (instant switches)."""
+    n_out = int(t_end * fs)
+    contact = np.zeros(n_out, dtype=np.float32)
+    wn = f_ratio * w  # armature natural frequency, rad/s
+    z = 0.0  # armature displacement (m) and velocity
+    zd = 0.0
+    k_amp = 0
+    y = 0.0
+    v = 0.0
+    riding = True
+    closed_until = -1.0
+    impacts = 0
+    next_sample = 0
+    for i in range(int(t_end / dt)):
+        t = i * dt
+        while k_amp + 1 < amp_t.shape[0] and t >= amp_t[k_amp + 1]:
+            k_amp += 1
+        amp = amp_v[k_amp]
+        ph = w * t
+        xp = amp * (math.sin(ph) + ha * math.sin(hk * ph + hpsi)) + z
+        vp = amp * w * (math.cos(ph) + ha * hk * math.cos(hk * ph + hpsi)) + zd
+        ap = (
+            -amp * w * w * (math.sin(ph) + ha * hk * hk * math.sin(hk * ph + hpsi))
+            - 2.0 * zeta * wn * zd
+            - wn * wn * z
+        )
+        if riding:
+            y = xp
+            v = vp
+            # friction opposes the body's motion: it leaves once the plate falls faster
+            g_eff = G * (1.0 + mu) if v > 0.0 else G * (1.0 - mu)
+            if ap < -g_eff:
+                riding = False
+        if not riding:
+            acc = -G * (1.0 + mu) if v > 0.0 else -G * (1.0 - mu)
+            y += v * dt + 0.5 * acc * dt * dt
+            v += acc * dt
+            t1 = t + dt
+            ph1 = w * t1
+            xp1 = amp * (math.sin(ph1) + ha * math.sin(hk * ph1 + hpsi)) + z + zd * dt
+            vp1 = amp * w * (math.cos(ph1) + ha * hk * math.cos(hk * ph1 + hpsi)) + zd
+            if y <= xp1:
+                v_rel = v - vp1  # < 0: the body hits the plate
+                impacts += 1
+                closed_until = t1 + contact_s
+                zd += mass_ratio * (1.0 + e) * v_rel  # the impact's momentum kicks the armature
+                y = xp1
+                rebound = -e * v_rel
+                if rebound < stick_v:
+                    riding = True
+                else:
+                    v = vp1 + rebound
+        zdd = -2.0 * zeta * wn * zd - wn * wn * z
+        zd += zdd * dt
+        z += zd * dt
+        while next_sample < n_out and next_sample <= t * fs:
+            closed = riding or t < closed_until
+            contact[next_sample] = 1.0 if closed else 0.0
+            next_sample += 1
+    return contact, impacts
+
+
+def make_case(out: Path, **opt) -> dict:
+    """Write one run folder ``out`` and ``out.truth.json``; returns the truth."""
+    o = dict(DEFAULTS, **opt)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    w = 2.0 * math.pi * o["f"]
+    gammas = np.round(np.arange(o["g0"], o["g1"] + 1e-9, o["dg"]), 6)
+    t_s = o["t0"] + o["step_s"] * np.arange(gammas.size)
+    t_end = float(t_s[-1] + o["step_s"])
+    amp_t = np.concatenate([[0.0], t_s])
+    amp_v = np.concatenate([[0.0], o["s"] * gammas * G / w**2])
+    contact, impacts = integrate(
+        t_end, o["dt"], w, amp_t, amp_v, o["mu"], o["e"], o["k"], o["a"], o["psi"],
+        o["mass_ratio"], o["f_ratio"], o["zeta"], o["contact_s"], o["stick_v"], o["fs"],
+    )  # fmt: skip
+    shift = int(round(o["delay_s"] * o["fs"]))
+    if shift:  # a sensor delay: the circuit reports every contact late
+        contact = np.concatenate([np.ones(shift, np.float32), contact[:-shift]])
+    rng = np.random.default_rng(o["seed"])
+    n = contact.size
+    level = contact if o["contact_high"] else 1.0 - contact
+    volts = 3.3 * level + rng.normal(0.0, o["noise_v"], n)
+    time_s = np.arange(n) / o["fs"]
+    drive = 0.8 * np.sin(w * time_s) + rng.normal(0.0, 0.01, n)
+    spec = {
+        "format_version": 1,
+        "kind": "sweep",
+        "sample_rate_hz": int(o["fs"]),
+        "drive_frequency_hz": o["f"],
+        "gamma_steps": [
+            {"t_s": float(t), "gamma": float(g)} for t, g in zip(t_s, gammas, strict=True)
+        ],
+        "settle_cycles": 10,
+        "mass_kg": 0.2,
+        "description": "independent generator (benchmarks/independent_rig.py)",
+    }
+    if o["format"] == "wav":
+        data = np.stack([volts, drive], axis=1) / 4.0
+        sf.write(out / "rec.wav", data.astype(np.float32), int(o["fs"]), subtype="PCM_24")
+        spec |= {"recording": "rec.wav", "channels": {"continuity": 0, "drive": 1}}
+        spec["full_scale_v"] = 4.0
+    else:
+        frame = pd.DataFrame({"time_s": time_s, "cont": volts, "drv": drive})
+        frame.to_csv(out / "rec.csv", index=False, float_format="%.10g")
+        spec |= {"recording": "rec.csv", "channels": {"continuity": "cont", "drive": "drv"}}
+    (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    truth = {**o, "impacts": int(impacts), "effects": true_effects(o)}
+    out.with_name(out.name + ".truth.json").write_text(json.dumps(truth, indent=1))
+    return truth
+
+
+def true_effects(o: dict) -> dict:
+    """Library effects (CONTRACTS.md section 5) that the options switch on, with their
+    parameters; the contact time, stick speed and sensor delay are outside the library."""
+    eff = {}
+    if o["mu"] > 0:
+        eff["friction"] = {"mu": o["mu"]}
+    if o["e"] > 0:
+        eff["restitution"] = {"e": o["e"]}
+    if o["a"] > 0:
+        eff["harmonic"] = {"k": o["k"], "a": o["a"], "psi": o["psi"]}
+    if o["mass_ratio"] > 0:
+        eff["feedback"] = {k: o[k] for k in ("mass_ratio", "f_ratio", "zeta")}
+    if o["s"] != 1.0:
+        eff["gamma_scale"] = {"s": o["s"]}
+    return eff
+
+
+DEFAULTS = {
+    "f": 30.0, "fs": 20000.0, "g0": 0.0, "g1": 4.0, "dg": 0.05, "step_s": 2.0, "t0": 0.0,
+    "mu": 0.0, "e": 0.0, "k": 3.0, "a": 0.0, "psi": 0.0, "s": 1.0,
+    "mass_ratio": 0.0, "f_ratio": 0.6, "zeta": 0.05,
+    "contact_s": 8e-5, "stick_v": 2e-4, "noise_v": 0.02, "delay_s": 0.0,
+    "contact_high": False, "format": "wav", "seed": 1, "dt": 2e-6,
+}  # fmt: skip
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("out", type=Path)
+    for key, value in DEFAULTS.items():
+        kind = type(value) if not isinstance(value, bool) else None
+        if kind is None:
+            p.add_argument("--" + key.replace("_", "-"), action="store_true")
+        else:
+            p.add_argument("--" + key.replace("_", "-"), type=kind, default=value)
+    args = vars(p.parse_args())
+    out = args.pop("out")
+    truth = make_case(out, **args)
+    print(f"{out}: {truth['impacts']} impacts, effects {sorted(truth['effects'])}")
+
+
+if __name__ == "__main__":
+    main()

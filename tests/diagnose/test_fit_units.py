@@ -429,3 +429,14 @@ def test_min_contact_is_zero_when_there_is_none_to_read(contacts, why):
 def test_min_contact_ignores_steps_below_gamma_one():
     """Below Gamma 1 there are no flights to speak of; contacts there are not read."""
     assert min_contact_T(_Rate(), _contact_table(np.full(300, 1e-4), gamma=0.9)) == 0.0
+
+
+def test_min_contact_of_a_contact_sampled_at_instants_is_its_mean():
+    """A closure of 80 us (1.6 samples at 20 kHz) sampled at instants shows as 1 sample
+    (40 % of contacts) or 2 (60 %): the low quantile is 50 us, under the 1.5-sample
+    limit; the pile-up's mean is the 80 us."""
+    rng = np.random.default_rng(1)
+    contacts = np.where(rng.random(500) < 0.4, 5e-5, 1e-4) + 1e-6 * rng.standard_normal(500)
+    contacts = np.concatenate([contacts, rng.uniform(2e-3, 2e-2, 200)])
+    got = min_contact_T(_Rate(), _contact_table(rng.permutation(contacts)))
+    assert got == pytest.approx(2 * np.pi * 30.0 * 8e-5, rel=0.05)

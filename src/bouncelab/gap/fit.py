@@ -364,12 +364,14 @@ def min_contact_T(run: Run, flights: pd.DataFrame) -> float:
     impact is seen shorter by that time, and a rebound that lands again within it is not
     seen at all. The contacts between consecutive settled flights of one step at
     Gamma > 1 then pile up at the contact time (every bounce, and every ride shorter
-    than it), with nothing below: the :data:`CONTACT_QUANTILE` quantile is read as the
-    contact time when the 1 % quantile is at least :data:`CONTACT_FLOOR_RATIO` of it (a
-    floor, not the low tail of rides that start at zero, as in a model's own flights)
-    and it spans at least :data:`CONTACT_MIN_SAMPLES` samples (a sub-sample contact
-    shows as about one sample: the edges cannot resolve it). 0 otherwise, and with
-    fewer than :data:`CONTACT_MIN_COUNT` contacts.
+    than it), with nothing below. When the 1 % quantile is at least
+    :data:`CONTACT_FLOOR_RATIO` of the :data:`CONTACT_QUANTILE` quantile ``q`` (a floor,
+    not the low tail of rides that start at zero, as in a model's own flights), the
+    contact time is the mean of the pile-up (the contacts up to ``1.5 q`` plus
+    :data:`CONTACT_MIN_SAMPLES` samples), if that spans at least
+    :data:`CONTACT_MIN_SAMPLES` samples (a sub-sample contact shows as about one sample:
+    the edges cannot resolve it). 0 otherwise, and with fewer than
+    :data:`CONTACT_MIN_COUNT` contacts.
     """
     if flights.empty:
         return 0.0
@@ -386,9 +388,14 @@ def min_contact_T(run: Run, flights: pd.DataFrame) -> float:
     lowest, shortest = np.quantile(contact, [0.01, CONTACT_QUANTILE])
     if lowest < CONTACT_FLOOR_RATIO * shortest:
         return 0.0
-    if shortest * float(run.sample_rate_hz) < CONTACT_MIN_SAMPLES:
+    # the pile-up's mean: a contact of 1.6 samples sampled at instants shows as 1 or 2
+    # samples, so its low quantile is 1 sample; the mean of the pile-up is 1.6
+    ts = 1.0 / float(run.sample_rate_hz)
+    pile = contact[contact <= 1.5 * shortest + CONTACT_MIN_SAMPLES * ts]
+    typical = float(np.mean(pile))
+    if typical < CONTACT_MIN_SAMPLES * ts:
         return 0.0
-    return 2.0 * math.pi * float(run.drive_frequency_hz) * float(shortest)
+    return 2.0 * math.pi * float(run.drive_frequency_hz) * typical
 
 
 def fit_protocol(

@@ -152,10 +152,10 @@ FIT_PROTOCOL_CYCLES = 7650
 #: Fewest settled cycles a step keeps in the fits' protocol (:func:`fit_protocol`).
 FIT_MIN_SETTLED = 30
 
-#: The data's shortest contact (:func:`min_contact_T`): this quantile of the contacts
-#: between flights, read as the model's contact time when it is a floor (the 1 %
-#: quantile at least ``CONTACT_FLOOR_RATIO`` of it), spans ``CONTACT_MIN_SAMPLES``
-#: samples and there are ``CONTACT_MIN_COUNT`` contacts.
+#: The data's shortest contact (:func:`min_contact_T`): the contacts between flights
+#: have a floor when their 1 % quantile is at least ``CONTACT_FLOOR_RATIO`` of their
+#: ``CONTACT_QUANTILE`` quantile; the mean of the pile-up at it is the contact time if
+#: it spans ``CONTACT_MIN_SAMPLES`` samples and there are ``CONTACT_MIN_COUNT`` contacts.
 CONTACT_QUANTILE = 0.05
 CONTACT_FLOOR_RATIO = 0.7
 CONTACT_MIN_SAMPLES = 1.5

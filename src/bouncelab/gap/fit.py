@@ -1207,7 +1207,9 @@ def fit_warnings(fit: FitResult, boot: np.ndarray) -> list[str]:
         for i in range(n):
             for j in range(i + 1, n):
                 if sd[i] > 0 and sd[j] > 0:
-                    r = float(np.corrcoef(boot[:, i], boot[:, j])[0, 1])
+                    # a spread of rounding size can still be 0 to corrcoef: NaN, no warning
+                    with np.errstate(invalid="ignore", divide="ignore"):
+                        r = float(np.corrcoef(boot[:, i], boot[:, j])[0, 1])
                     if abs(r) > TRADE_OFF_CORR:
                         a, b = fit.free[i].name, fit.free[j].name
                         out.append(f"{a} and {b} trade off (bootstrap correlation {r:+.2f})")

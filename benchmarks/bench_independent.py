@@ -51,6 +51,12 @@ CASES = {
         "mu": 0.29, "e": 0.5, "mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.04, "seed": 7,
     },
     "delay_2ms": {"delay_s": 0.002, "seed": 17},
+    # the seed's protocol: Gamma 0 to 8 in steps of 0.05
+    "null_g0-8_20hz": {"f": 20.0, "g1": 8.0, "step_s": 4.0, "seed": 32},
+    "friction_restitution_g0-8_25hz": {
+        "f": 25.0, "g1": 8.0, "step_s": 3.2, "mu": 0.25, "e": 0.5, "contact_s": 1e-4, "seed": 31,
+    },
+    "friction_harmonic_g0-8": {"g1": 8.0, "mu": 0.2, "a": 0.05, "k": 3.0, "psi": 1.0, "seed": 33},
 }  # fmt: skip
 
 

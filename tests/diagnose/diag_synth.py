@@ -53,14 +53,20 @@ def duration_s(gammas=GAMMAS, cycles: int = CYCLES) -> float:
 
 
 def pseudo_flights(
-    run_dir: Path, model: Model, seed: int, noise_rad: float = 0.005, cycles: int = CYCLES
+    run_dir: Path,
+    model: Model,
+    seed: int,
+    noise_rad: float = 0.005,
+    cycles: int = CYCLES,
+    gammas=GAMMAS,
 ):
     """Flights of ``model`` under the run's protocol from a seeded random start phase (not
     the diagnosis's own start), with Gaussian timing noise of ``noise_rad`` on ``T`` (the
-    rig's sampling resolution is about 0.01 rad). ``cycles``: as given to :func:`write_run`.
+    rig's sampling resolution is about 0.01 rad). ``cycles``, ``gammas``: as given to
+    :func:`write_run`.
     """
     run = load_run(run_dir)
-    sim = simulate_run(run, model, duration_s(cycles=cycles), n_starts=2, seed=seed)
+    sim = simulate_run(run, model, duration_s(gammas, cycles), n_starts=2, seed=seed)
     sim = sim.loc[sim["start"] == 1].reset_index(drop=True)  # member 0 starts at phase 0
     rng = np.random.default_rng(seed)
     sim["T"] = np.abs(sim["T"].to_numpy() + noise_rad * rng.standard_normal(len(sim)))

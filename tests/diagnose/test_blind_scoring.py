@@ -12,6 +12,7 @@ from bouncelab.gap.blind import (
     deep_merge,
     interval_hits,
     load_cases,
+    merge_results,
     relative_errors,
     score_case,
     summarize,
@@ -112,3 +113,35 @@ def test_case_file_merges_over_base():
     fr = next(c for c in cases if c["name"] == "friction_a")["rig"]
     assert fr["body"]["friction_mu"] == 0.15 and fr["body"]["restitution"] == 0.0
     assert deep_merge({"a": {"b": 1, "c": 2}}, {"a": {"b": 3}}) == {"a": {"b": 3, "c": 2}}
+
+
+def test_merged_record_summarizes_every_case():
+    """A re-run case replaces its record entry, a new one is added, and the summaries
+    are those of the merged cases: one null false alarm before, none after the re-run
+    of that case; the new friction case counts in its set."""
+
+    def entry(diag, truth, kind_set):
+        return {**score_case(diag, truth), "set": kind_set}
+
+    record = {
+        "cases": {
+            "n": entry(_diag(["friction"], {"mu": 0.1}), _truth(), "validation"),
+            "f": entry(_diag(["friction"], {"mu": 0.2}), _truth(mu=0.2), "development"),
+        },
+        "timings": {"n": {"diagnose_s": 1.0}, "f": {"diagnose_s": 2.0}},
+    }
+    assert summarize(record["cases"])["null_false_alarms"] == 1
+    new = {
+        "cases": {
+            "n": entry(_diag([], {}), _truth(), "validation"),
+            "g": entry(_diag(["friction"], {"mu": 0.3}), _truth(mu=0.3), "validation"),
+        },
+        "timings": {"n": {"diagnose_s": 3.0}, "g": {"diagnose_s": 4.0}},
+    }
+    merged = merge_results(record, new)
+    assert set(merged["cases"]) == {"n", "f", "g"}
+    assert merged["timings"]["n"] == {"diagnose_s": 3.0}
+    assert merged["summary"]["null_false_alarms"] == 0
+    assert merged["summary"]["n_single"] == 2
+    assert merged["by_set"]["validation"]["n_single"] == 1
+    assert merged["by_set"]["development"]["n_single"] == 1

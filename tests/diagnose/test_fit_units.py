@@ -217,12 +217,13 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
         "friction+restitution": scripted_fit("friction+restitution", {"mu": 0.0, "e": 0.5}, 1.0),
         "restitution+harmonic": scripted_fit("restitution+harmonic", {"e": 0.3, "k": 2.0}, 4.5),
     }
-    calls = []
+    calls, continued = [], {}
 
     def fake_fit_many(jobs, pool=None, progress=None):
         out = []
-        for _problem, name, base, _fixed, search, _settings, _seed in jobs:
+        for _problem, name, base, _fixed, search, _settings, _seed, *more in jobs:
             calls.append((name, search))
+            continued[name] = bool(more and more[0])
             if search == ():  # the refit without the inert effect, from its values
                 assert base == {"e": 0.5}
                 out.append(scripted_fit(name, base, 1.2))
@@ -235,12 +236,16 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
     monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
     sel = select.forward_select(
-        None, 1.0, candidates=["friction", "restitution", "harmonic"],
+        None, 1.0, candidates=["friction", "restitution", "harmonic", "feedback"],
         settings=select.SelectSettings(explained_ratio=0.5),
     )  # fmt: skip
     assert [e for e, _f in sel["accepted"]] == ["restitution"]
     assert sel["final"].model.params == {"e": 0.5} and sel["final"].objective == 1.2
     assert ("restitution", ()) in calls and sel["stop"] == "no_improvement"
+    # the joint fits of round 2 search the low-Gamma steps first, round 1 and refits not
+    assert continued["friction+restitution"] and continued["restitution+harmonic"]
+    assert not continued["friction"] and not continued["restitution"]
+    assert not continued["restitution+feedback"]  # the armature is not continued
 
 
 def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
@@ -251,7 +256,7 @@ def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
 
     def fake_fit_many(jobs, pool=None, progress=None):
         out = []
-        for _problem, name, base, _fixed, search, settings, _seed in jobs:
+        for _problem, name, base, _fixed, search, settings, _seed, *_more in jobs:
             if search == ():
                 out.append(scripted_fit(name, base, 1.95))
             elif name == "friction+restitution" and settings == "refined":

@@ -1,6 +1,7 @@
 """Validation of the gap diagnosis on withheld effects, with the virtual rig.
 
     python -m bouncelab.gap.blind --out results/blind [--cases config/blind/cases.yaml]
+        [--only NAME ...] [--merge-into benchmarks/results/blind_validation.json]
 
 For each case (a partial rig config, ``config/blind/cases.yaml``) the rig writes a run
 folder and, elsewhere, its ground truth. :func:`bouncelab.gap.diagnose.diagnose_run` is
@@ -341,6 +342,21 @@ def run_blind(
     return result
 
 
+def merge_results(record: dict, new: dict) -> dict:
+    """``record`` (a :func:`run_blind` result) with the cases of ``new`` added or
+    replaced, and its summaries (overall and per set) recomputed from the merged cases.
+    Why: a change that touches only some cases (or new cases) is re-run alone, and the
+    record must still summarize every case."""
+    scores = {**record["cases"], **new["cases"]}
+    timings = {**record.get("timings", {}), **new.get("timings", {})}
+    by_set = {
+        k: summarize({n: sc for n, sc in scores.items() if sc["set"] == k})
+        for k in CASE_SETS
+        if any(sc["set"] == k for sc in scores.values())
+    }
+    return {"cases": scores, "summary": summarize(scores), "by_set": by_set, "timings": timings}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m bouncelab.gap.blind", description=__doc__)
     p.add_argument("--out", required=True, help="output folder (e.g. results/blind)")
@@ -348,12 +364,23 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", nargs="*", help="run only these case names")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument(
+        "--merge-into",
+        default=None,
+        help="a record (scores.json of an earlier run) to add this run's cases to, in place",
+    )
     args = p.parse_args(argv)
     try:
         cases = load_cases(args.cases)
         if args.only:
             cases = [c for c in cases if c["name"] in set(args.only)]
         result = run_blind(cases, args.out, seed=args.seed, workers=args.workers)
+        if args.merge_into:
+            record = Path(args.merge_into)
+            if not record.is_file():
+                raise BouncelabError(record, "record to merge into does not exist")
+            result = merge_results(json.loads(record.read_text()), result)
+            record.write_text(json.dumps(result, indent=1, sort_keys=True) + "\n")
     except BouncelabError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -33,6 +33,7 @@ from bouncelab.gap.fit import (
     align_steps,
     best_member_simulation,
     bootstrap_params,
+    continuation_gamma,
     fit_warnings,
     intervals,
     make_problem,
@@ -426,6 +427,8 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
         "min_contact": problem.min_contact,
         "min_contact_s": problem.min_contact
         / (2.0 * math.pi * float(problem.run.drive_frequency_hz)),
+        # joint fits of later rounds search the steps up to this Gamma first (None: not)
+        "continuation_gamma": continuation_gamma(problem),
         "k_choices": list(K_CHOICES),
         "ride_load_choices": list(RIDE_LOAD_CHOICES),
         "bounds": {p: list(v[1:]) for e in EFFECTS.values() for p, v in e.items()},

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from bouncelab.errors import BouncelabError
+from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
 from bouncelab.gap.features import circular_mean, compare_features, wrap_angle
 from bouncelab.gap.fit import (
     DATA_RESOLUTION,
@@ -332,6 +333,10 @@ def diagnose_flights(
     phase_reason = phase_shift_reason(phase_final)
     if phase_reason:
         reasons.append(phase_reason)
+    by_half = strength_by_half(problem, final.model) if sel["accepted"] else {}
+    drift = drift_reason(by_half)
+    if drift:
+        reasons.append(drift)
 
     regions = _regions(problem, base_fit.gaps, sel["accepted"], cmp_base, select_settings)
     out = {
@@ -353,6 +358,8 @@ def diagnose_flights(
         "final_model": {"model": final.model.name, "params": _params(final.model)},
         "final_rel_gap": final_gap / floor if floor > 0 else None,
         "unexplained_reasons": reasons,
+        # friction's mu and restitution's e refitted on each half of the Gamma steps
+        "strength_by_half": by_half,
         "stop": sel["stop"],
         "rounds": [
             [
@@ -444,6 +451,8 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
             "phase_tol": PHASE_TOL,
             "phase_sigmas": PHASE_SIGMAS,
             "phase_min_steps": PHASE_MIN_STEPS,
+            "drift_rel": DRIFT_REL,
+            "drift_abs": DRIFT_ABS,
         },
     }
 

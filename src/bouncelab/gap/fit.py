@@ -173,11 +173,11 @@ CONTINUATION_GAMMA = 3.0
 #: the run is mostly low-Gamma already and the first search would cost as much as the
 #: joint one and find the same) and hold at least :data:`CONTINUATION_MIN_STEPS` fit steps.
 CONTINUATION_MAX_SHARE = 0.5
+CONTINUATION_MIN_STEPS = 8
 
 #: Cycles of the step after a kept stretch in :meth:`Problem.restricted`: longer than any
 #: flight that takes off at Gamma <= 3 (under 2 pi).
 RESTRICTED_TAIL_CYCLES = 2
-CONTINUATION_MIN_STEPS = 8
 
 #: Fewer generations than this and the refinement is skipped: less than the selection's
 #: own joint search (10, 20 with feedback) is not expected to improve on it, and the

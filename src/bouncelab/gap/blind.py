@@ -332,12 +332,7 @@ def run_blind(
             f"{sc['selected'] or ['none']}, unexplained {sc['unexplained']}, "
             f"errors {sc['param_errors']} ({t2 - t0:.0f} s)"
         )
-    by_set = {
-        k: summarize({n: sc for n, sc in scores.items() if sc["set"] == k})
-        for k in CASE_SETS
-        if any(sc["set"] == k for sc in scores.values())
-    }
-    result = {"cases": scores, "summary": summarize(scores), "by_set": by_set, "timings": timings}
+    result = scores_record(scores, timings)
     (out_dir / "scores.json").write_text(json.dumps(result, indent=1, sort_keys=True) + "\n")
     return result
 
@@ -349,6 +344,12 @@ def merge_results(record: dict, new: dict) -> dict:
     record must still summarize every case."""
     scores = {**record["cases"], **new["cases"]}
     timings = {**record.get("timings", {}), **new.get("timings", {})}
+    return scores_record(scores, timings)
+
+
+def scores_record(scores: dict[str, dict], timings: dict[str, dict]) -> dict:
+    """The content of ``scores.json``: per-case ``scores`` and ``timings``, the summary of
+    all cases and one per case set (:func:`summarize`)."""
     by_set = {
         k: summarize({n: sc for n, sc in scores.items() if sc["set"] == k})
         for k in CASE_SETS

@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from bouncelab.errors import BouncelabError
@@ -76,3 +77,22 @@ def test_parse_assignments():
     for bad in (["mu"], ["=1"], ["zz=1"], ["mu=abc"]):
         with pytest.raises(BouncelabError):
             parse_assignments(bad)
+
+
+def test_rigid_plate_restitution_gives_the_same_impact_in_the_other_convention():
+    """Reference: the two impact laws written out. The model's two-body impact (docs/
+    physics.md): body velocity change J = (1 + e)(-u)/(1 + r), armature -r J. The other
+    convention: the body rebounds at -e_r u from the plate as it was, the armature takes
+    r (1 + e_r) u. With e_r = rigid_plate_restitution(e, r) both give the same body and
+    armature velocities after the impact (to rounding), and e_r = e without an armature."""
+    from bouncelab.physics import rigid_plate_restitution
+
+    rng = np.random.default_rng(3)
+    for e, r, vp, u in rng.uniform([0.0, 0.0, -2.0, -3.0], [0.95, 0.5, 2.0, -0.01], (50, 4)):
+        jump = (1.0 + e) * (-u) / (1.0 + r)
+        body, armature = vp + u + jump, -r * jump
+        e_r = rigid_plate_restitution(e, r)
+        assert abs((vp - e_r * u) - body) < 1e-12
+        assert abs(r * (1.0 + e_r) * u - armature) < 1e-12
+    assert rigid_plate_restitution(0.515, 0.0) == 0.515
+    assert abs(rigid_plate_restitution(0.5707, 0.0448) - 0.5030) < 1e-3

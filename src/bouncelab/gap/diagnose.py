@@ -45,7 +45,7 @@ from bouncelab.gap.fit import (
 )
 from bouncelab.gap.regions import segment_regions
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
-from bouncelab.physics import EFFECTS, Model
+from bouncelab.physics import EFFECTS, Model, rigid_plate_restitution
 
 #: A median takeoff-phase offset (model minus data, rad) beyond this after the final model
 #: is named unexplained: the flight-time gap cannot see a pure timing shift (a sensor delay).
@@ -304,6 +304,11 @@ def diagnose_flights(
             "warnings": summary["warnings"],
             "n_evals": fit.n_evals,
         }
+        if {"e", "mass_ratio"} <= set(fit.model.params):
+            # e in the other convention of an impact on the armature (physics.model)
+            entry["e_rigid_plate"] = rigid_plate_restitution(
+                fit.model.params["e"], fit.model.params["mass_ratio"]
+            )
         if calibration is not None:
             entry["calibration"] = {
                 p: float(calibration[k])

@@ -6,7 +6,13 @@ velocity in ``g / omega``, Gamma ``= A omega^2 / g``, energies per unit mass in
 protocols.
 """
 
-from bouncelab.physics.model import EFFECT_ORDER, EFFECTS, Model, parse_assignments
+from bouncelab.physics.model import (
+    EFFECT_ORDER,
+    EFFECTS,
+    Model,
+    parse_assignments,
+    rigid_plate_restitution,
+)
 from bouncelab.physics.simulate import (
     FLIGHT_COLUMNS,
     simulate_drop,
@@ -21,6 +27,7 @@ __all__ = [
     "FLIGHT_COLUMNS",
     "Model",
     "parse_assignments",
+    "rigid_plate_restitution",
     "simulate_drop",
     "simulate_from",
     "simulate_grid",

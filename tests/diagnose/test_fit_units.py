@@ -235,8 +235,9 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
     monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
     monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    monkeypatch.setattr(select, "fresh_objectives", lambda *a, **k: np.full(4, 9.5))
     sel = select.forward_select(
-        None, 1.0, candidates=["friction", "restitution", "harmonic", "feedback"],
+        _OneStepProblem(), 1.0, candidates=["friction", "restitution", "harmonic", "feedback"],
         settings=select.SelectSettings(explained_ratio=0.5),
     )  # fmt: skip
     assert [e for e, _f in sel["accepted"]] == ["restitution"]
@@ -282,6 +283,122 @@ def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
     assert [e for e, _f in sel["accepted"]] == ["restitution"]
     assert sel["final"].model.params == {"e": 0.5} and sel["final"].objective == 1.95
     assert sel["accepted"][0][1] is sel["final"]
+
+
+class _OneStepProblem:
+    """The least of a problem that :func:`bouncelab.gap.select.armature_choice` reads:
+    one fit step of noise floor 1 rad."""
+
+    fit = np.array([True])
+    floor = np.array([1.0])
+
+    def mean(self, values, mask):
+        return float(np.asarray(values)[mask].mean())
+
+
+@pytest.mark.parametrize(
+    "fresh, taken",
+    [
+        # impacts-only clearly better on fresh ensembles (means 1.0 against 3.0): switch
+        ({0.0: [1.0, 1.1, 0.9, 1.0], 1.0: [3.0, 3.1, 2.9, 3.0]}, 0.0),
+        # a lucky fit of the other choice, no better on fresh ensembles: round 1's kept
+        ({0.0: [3.5, 3.9, 3.6, 4.1], 1.0: [3.9, 3.8, 4.0, 3.9]}, 1.0),
+        # better beyond the noise but by less than DATA_RESOLUTION (0.12) floors: kept
+        ({0.0: [3.80, 3.80, 3.80, 3.80], 1.0: [3.90, 3.90, 3.90, 3.90]}, 1.0),
+    ],
+)
+def test_later_rounds_search_every_armature_choice_but_keep_the_harmonics_k(
+    monkeypatch, fresh, taken
+):
+    """Reference: a scripted selection. Round 1: restitution (10 -> 5); the harmonic fits
+    best alone at k 3, the armature alone best loaded (ride_load 1). Round 2 searches the
+    harmonic at k 3 only and the armature with each ride_load; the impacts-only fit (gap 1)
+    beats the loaded one (3) on the fit steps, and is taken only when it also does on
+    fresh ensembles by more than 2 standard errors and 0.12 floors (``fresh``: objective
+    per draw, rad). Only in the last round the selection has room for: before it, and
+    before session 16 in every round, only round 1's choice (loaded) is searched."""
+    from bouncelab.gap import select
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append((name, dict(fixed)))
+            choice = {k: v for k, v in fixed.items() if k in ("k", "ride_load")}
+            gap = {
+                ("restitution", ()): 5.0,
+                ("harmonic", (("k", 3.0),)): 8.0,
+                ("feedback", (("ride_load", 1.0),)): 7.0,
+                ("restitution+feedback", (("ride_load", 0.0),)): 1.0,
+                ("restitution+feedback", (("ride_load", 1.0),)): 3.0,
+            }.get((name, tuple(sorted(choice.items()))), 9.0 if name != "ideal" else 10.0)
+            full = {**choice, "mass_ratio": 0.04} if "feedback" in name else choice
+            out.append(scripted_fit(name, full, gap))
+        return out
+
+    calls = []
+    monkeypatch.setattr(select, "fit_many", fake_fit_many)
+    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
+    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
+    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    monkeypatch.setattr(
+        select,
+        "fresh_objectives",
+        lambda model, problem, draws: np.array(fresh[model.params["ride_load"]]),
+    )
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "harmonic", "feedback"],
+        settings=select.SelectSettings(explained_ratio=0.5, max_effects=2),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
+    assert sel["final"].model.params["ride_load"] == taken
+    assert sel["final"].n_evals == 2  # both choices' searches are counted
+    round2 = calls[1 + 4 + 2 + 1 :]  # baseline, 4 harmonic k, 2 armatures, restitution
+    assert sorted(f["ride_load"] for n, f in round2 if n == "restitution+feedback") == [0, 1]
+    assert [f["k"] for n, f in round2 if n == "restitution+harmonic"] == [3.0]
+
+    # with room for a third effect, round 2 is not the last: round 1's choice is kept
+    calls.clear()
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "harmonic", "feedback"],
+        settings=select.SelectSettings(explained_ratio=0.5, max_effects=3),
+    )  # fmt: skip
+    round2 = calls[1 + 4 + 2 + 1 : 1 + 4 + 2 + 1 + 2]
+    assert [f["ride_load"] for n, f in round2 if n == "restitution+feedback"] == [1.0]
+    assert sel["accepted"][1][1].model.params["ride_load"] == 1.0
+
+
+def test_the_last_round_skips_the_other_armature_when_the_kept_one_explains_the_run(
+    monkeypatch,
+):
+    """Reference: a scripted selection as above, but the loaded armature of round 1's
+    choice brings round 2 to 0.4 floors, within explained_ratio (0.5): it is taken, and
+    the impacts-only armature is not searched (it could only move the parameters)."""
+    from bouncelab.gap import select
+
+    calls = []
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append((name, dict(fixed)))
+            load = fixed.get("ride_load")
+            gap = {("restitution", None): 5.0, ("feedback", 1.0): 8.0}.get((name, load), 9.0)
+            gap = 0.4 if name == "restitution+feedback" else gap
+            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
+            out.append(scripted_fit(name, params if "feedback" in name else {}, gap))
+        return out
+
+    monkeypatch.setattr(select, "fit_many", fake_fit_many)
+    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
+    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
+    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "feedback"],
+        settings=select.SelectSettings(explained_ratio=0.5, max_effects=2),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
+    loads = [f["ride_load"] for n, f in calls if n == "restitution+feedback"]
+    assert loads == [1.0] and sel["final"].model.params["ride_load"] == 1.0
 
 
 def test_a_noiseless_objective_still_gets_the_data_resolution(monkeypatch):

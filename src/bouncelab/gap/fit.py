@@ -1302,10 +1302,26 @@ def bootstrap_params(
     return decoded[best]
 
 
+def fresh_objectives(model: Model, problem: Problem, draws: int = NOISE_DRAWS) -> np.ndarray:
+    """Fit-step objective (rad) of ``model`` on ``draws`` fresh ensembles, shape (draws,):
+    the member offsets shifted by ``k / (draws + 1)`` of :data:`MEMBER_SPREAD`
+    (:func:`step_gaps`), ``k = 1 .. draws``, none of them the fits' own ensemble.
+
+    Why: the best evaluation of a fit is the luckiest draw of the orbit lottery among
+    hundreds; on fresh ensembles two fits compare without that winner's curse.
+    """
+    buffer = OutputBuffer()
+    return np.array(
+        [
+            problem.mean(step_gaps(problem, model, buffer, shift=k / (draws + 1)), problem.fit)
+            for k in range(1, draws + 1)
+        ]
+    )
+
+
 def objective_noise(fit: FitResult, problem: Problem, draws: int = NOISE_DRAWS) -> float:
     """Standard deviation (rad) of the fit-step objective at the best parameters over
-    ``draws`` fresh ensembles (member offsets shifted by ``k / (draws + 1)`` of
-    :data:`MEMBER_SPREAD`, :func:`step_gaps`).
+    ``draws`` fresh ensembles (:func:`fresh_objectives`).
 
     The objective's own noise: which of coexisting orbits the members settle on after a
     chaotic stretch is a lottery, so the same parameters score differently with another
@@ -1315,12 +1331,7 @@ def objective_noise(fit: FitResult, problem: Problem, draws: int = NOISE_DRAWS) 
     """
     if draws < 2 or not problem.fit.any():
         return 0.0
-    buffer = OutputBuffer()
-    values = [
-        problem.mean(step_gaps(problem, fit.model, buffer, shift=k / (draws + 1)), problem.fit)
-        for k in range(1, draws + 1)
-    ]
-    return float(np.std(values, ddof=1))
+    return float(np.std(fresh_objectives(fit.model, problem, draws), ddof=1))
 
 
 def noise_intervals(fit: FitResult, problem: Problem, tolerance: float) -> dict:

@@ -70,3 +70,31 @@ def test_rendering_is_deterministic(tmp_path, context):
     h1 = render_html(context, TEMPLATES, tmp_path / "report" / "a.html", CSS).read_bytes()
     h2 = render_html(context, TEMPLATES, tmp_path / "report" / "b.html", CSS).read_bytes()
     assert h1 == h2
+
+
+def test_diagnosis_table_shows_e_rigid_plate_beside_the_armature(tmp_path):
+    """A step with restitution and the armature shows e in both conventions; one without
+    the armature shows none (reference: the JSON values, written as the table prints)."""
+    import json
+
+    from bouncelab.report.content import diagnosis_blocks
+
+    run = tmp_path / "runs" / "r"
+    run.mkdir(parents=True)
+    steps = [
+        {"effect": "restitution", "params": {"e": 0.554}, "gap": 0.25, "shrink": 0.3},
+        {
+            "effect": "feedback",
+            "params": {"e": 0.5708, "mass_ratio": 0.0448, "f_ratio": 0.644, "zeta": 0.088},
+            "e_rigid_plate": 0.503,
+            "gap": 0.05,
+            "shrink": 0.5,
+        },
+    ]
+    diag = {"baseline": {"model": "ideal", "gap": 0.37}, "noise_floor": 0.06, "steps": steps}
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+    blocks = diagnosis_blocks(tmp_path, "r", tmp_path / "captions.yaml")
+    (table,) = [b for b in blocks if b.get("header", [""])[0] == "effect"]
+    first, second = (row[1] for row in table["rows"])
+    assert "e_rigid_plate" not in first
+    assert second.endswith("; e_rigid_plate = 0.503") and "e = 0.5708" in second

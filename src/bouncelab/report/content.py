@@ -274,7 +274,10 @@ def diagnosis_blocks(results: Path, run: str, captions: Path) -> list[dict]:
     rows = [
         [
             s["effect"],
-            _params_text(s.get("params", {}), s.get("params_ci")),
+            _params_text(s.get("params", {}), s.get("params_ci"))
+            + (  # the same impacts in the other convention (docs/diagnosis.md)
+                f"; e_rigid_plate = {s['e_rigid_plate']:.4g}" if "e_rigid_plate" in s else ""
+            ),
             fmt(s["gap"]),
             fmt(s["shrink"]),
             "; ".join(map(str, s.get("warnings") or [])) or "-",

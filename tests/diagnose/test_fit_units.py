@@ -203,6 +203,18 @@ def scripted_fit(name: str, params: dict, gap: float) -> FitResult:
     )  # fmt: skip
 
 
+def script_selection(monkeypatch, fake_fit_many, refined=None):
+    """Make :func:`bouncelab.gap.select.forward_select` run on scripted fits: ``fit_many``
+    is ``fake_fit_many``, the held-out gap is each fit's objective, no simulated cycles
+    are counted, and the refinement's settings are ``refined`` (None: no refinement)."""
+    from bouncelab.gap import select
+
+    monkeypatch.setattr(select, "fit_many", fake_fit_many)
+    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
+    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: refined)
+    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+
+
 def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     """Reference: a scripted selection (gaps in noise floors, held-out gap = objective).
     Round 1 takes restitution (10 -> 5). In round 2 friction at mu 0 "shrinks" the gap to
@@ -231,10 +243,7 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
                 out.append(script.get(name, scripted_fit(name, {}, 9.5)))
         return out
 
-    monkeypatch.setattr(select, "fit_many", fake_fit_many)
-    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
-    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
-    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    script_selection(monkeypatch, fake_fit_many)
     monkeypatch.setattr(select, "fresh_objectives", lambda *a, **k: np.full(4, 9.5))
     sel = select.forward_select(
         _OneStepProblem(), 1.0, candidates=["friction", "restitution", "harmonic", "feedback"],
@@ -270,10 +279,7 @@ def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
                 out.append(scripted_fit(name, {}, 9.5 if name != "ideal" else 10.0))
         return out
 
-    monkeypatch.setattr(select, "fit_many", fake_fit_many)
-    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
-    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: "refined")
-    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    script_selection(monkeypatch, fake_fit_many, refined="refined")
     monkeypatch.setattr(select, "replace", lambda problem, **k: problem)
     monkeypatch.setattr(select, "recheck_best", lambda fit, *a, **k: fit)
     sel = select.forward_select(
@@ -336,10 +342,7 @@ def test_later_rounds_search_every_armature_choice_but_keep_the_harmonics_k(
         return out
 
     calls = []
-    monkeypatch.setattr(select, "fit_many", fake_fit_many)
-    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
-    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
-    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    script_selection(monkeypatch, fake_fit_many)
     monkeypatch.setattr(
         select,
         "fresh_objectives",
@@ -388,10 +391,7 @@ def test_the_last_round_skips_the_other_armature_when_the_kept_one_explains_the_
             out.append(scripted_fit(name, params if "feedback" in name else {}, gap))
         return out
 
-    monkeypatch.setattr(select, "fit_many", fake_fit_many)
-    monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
-    monkeypatch.setattr(select, "refine_settings", lambda *a, **k: None)
-    monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    script_selection(monkeypatch, fake_fit_many)
     sel = select.forward_select(
         _OneStepProblem(), 1.0, candidates=["restitution", "feedback"],
         settings=select.SelectSettings(explained_ratio=0.5, max_effects=2),

@@ -282,14 +282,14 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
     and took a Gamma miscalibration (1.84); searched again, the impacts-only armature
     came out at 0.83 floors. In the last round only, because each search of the armature
     costs as much as all other additions of a round (in every later round it made
-    ``raw/sweep_g0-8`` 142 s instead of 88, goal 120); an armature taken earlier keeps
+    ``raw/sweep_g0-8`` 142 s instead of 102, goal 120); an armature taken earlier keeps
     its choice free in the joint fits after it.
 
     Skipped when the armature with round 1's choice is the round's proposal and brings
     the run within ``explained_ratio`` noise floors: the selection ends with it either
     way, and the other choice could only move its parameters along the valley the flight
     times leave flat, for a search that costs as much as all other additions of the
-    round (``raw/sweep_g0-8``: 123 s instead of 88 with it, goal 120).
+    round (``raw/sweep_g0-8``: 123 s with it instead of 102, goal 120).
     """
     problem, start, fixed, fit_settings, seed = job
     mine = dict(tried)

@@ -12,6 +12,7 @@ import pytest
 from bouncelab.errors import BouncelabError
 from bouncelab.gap.diagnose import read_calibration
 from bouncelab.gap.fit import (
+    JOINT_K_CHOICES,
     K_CHOICES,
     FitResult,
     bootstrap_params,
@@ -21,6 +22,7 @@ from bouncelab.gap.fit import (
     free_params,
     heldout_mask,
     intervals,
+    joint_choices,
     min_contact_T,
     noise_intervals,
     poorly_identified,
@@ -45,6 +47,18 @@ def test_free_params_bounds_and_fixed():
     a = free[1]
     assert (a.lower, a.upper) == EFFECTS["harmonic"]["a"][1:]
     assert free[0].choices == K_CHOICES
+
+
+def test_a_joint_fit_moves_a_fitted_harmonic_among_the_common_multiples_and_its_own():
+    """From scratch k is searched over every choice; from a fitted k over
+    JOINT_K_CHOICES and that k (the same tuple when it is one of them)."""
+    free = free_params(("friction", "harmonic"))
+    assert joint_choices(free, {})[1].choices == K_CHOICES
+    assert joint_choices(free, {"k": 3.0, "mu": 0.1})[1].choices == JOINT_K_CHOICES
+    k = joint_choices(free, {"k": 2.5})[1]
+    assert k.choices == (0.5, 2.0, 2.5, 3.0, 4.0) and (k.lower, k.upper) == (0.0, 4.0)
+    assert joint_choices(free, {"k": 2.5})[0] == free[0]  # mu untouched
+    assert set(JOINT_K_CHOICES) < set(K_CHOICES)
 
 
 def test_encode_decode_round_trip():
@@ -355,7 +369,8 @@ def test_later_rounds_search_every_armature_choice_but_keep_the_harmonics_k(
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
     assert sel["final"].model.params["ride_load"] == taken
     assert sel["final"].n_evals == 2  # both choices' searches are counted
-    round2 = calls[1 + 4 + 2 + 1 :]  # baseline, 4 harmonic k, 2 armatures, restitution
+    n_k = len(K_CHOICES)
+    round2 = calls[1 + n_k + 2 + 1 :]  # baseline, each harmonic k, 2 armatures, restitution
     assert sorted(f["ride_load"] for n, f in round2 if n == "restitution+feedback") == [0, 1]
     assert [f["k"] for n, f in round2 if n == "restitution+harmonic"] == [3.0]
 
@@ -365,7 +380,7 @@ def test_later_rounds_search_every_armature_choice_but_keep_the_harmonics_k(
         _OneStepProblem(), 1.0, candidates=["restitution", "harmonic", "feedback"],
         settings=select.SelectSettings(explained_ratio=0.5, max_effects=3),
     )  # fmt: skip
-    round2 = calls[1 + 4 + 2 + 1 : 1 + 4 + 2 + 1 + 2]
+    round2 = calls[1 + n_k + 2 + 1 : 1 + n_k + 2 + 1 + 2]
     assert [f["ride_load"] for n, f in round2 if n == "restitution+feedback"] == [1.0]
     assert sel["accepted"][1][1].model.params["ride_load"] == 1.0
 

@@ -52,7 +52,8 @@ from bouncelab.runs import Run
 #: first four only, recordings of an independent generator (``benchmarks/
 #: independent_rig.py``) with k 1.5, 2.5 and 5 came out as k 0.5, 0.5 and 4, a 79 %,
 #: 431 % and 63 % off, two of them unexplained; with them, k right and a within 2.8 %.
-#: Each choice is one more search in round 1 (``raw/sweep_g0-8``: 97 -> 102 s).
+#: Each choice is one more search in round 1 (``raw/sweep_g0-8``: 2003 -> 2231
+#: evaluations, 102 -> 114 s in ``benchmarks/bench_diagnose.py``; goal 120 s).
 K_CHOICES = (0.5, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
 
 #: The multiples a joint fit may move an already fitted harmonic to, besides the one it

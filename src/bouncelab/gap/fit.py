@@ -48,22 +48,15 @@ from bouncelab.runs import Run
 #: Harmonic multiples tried for ``k`` (a discrete choice, not a continuous parameter: the
 #: gap is very rugged in ``k``). 0.5 stands for a low-frequency shaker oscillation, 2 to 5
 #: for harmonic distortion (the seed's fig. 10 uses the third harmonic), 1.5 and 2.5 for
-#: the non-integer multiples CONTRACTS.md section 5 allows. Why 1.5, 2.5 and 5: with the
-#: first four only, recordings of an independent generator (``benchmarks/
-#: independent_rig.py``) with k 1.5, 2.5 and 5 came out as k 0.5, 0.5 and 4, a 79 %,
-#: 431 % and 63 % off, two of them unexplained; with them, k right and a within 2.8 %.
-#: Each choice is one more search in round 1 (``raw/sweep_g0-8``: 2003 -> 2231
-#: evaluations, 102 -> 114 s in ``benchmarks/bench_diagnose.py``; goal 120 s).
+#: the non-integer multiples CONTRACTS.md section 5 allows (without them an independent
+#: generator's k 1.5 and 2.5 came out as 0.5; docs/diagnosis.md section 4, session 17).
 K_CHOICES = (0.5, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
 
-#: The multiples a joint fit may move an already fitted harmonic to, besides the one it
-#: has (:func:`joint_choices`): the first four of :data:`K_CHOICES`. Why: a joint fit
-#: searches ``k`` as one integer dimension of its population, so that a round-1 choice
-#: can still be corrected beside another effect (section 1 of docs/diagnosis.md, "Inert
-#: additions": k 3 -> 2 beside restitution); over all seven the population met the
-#: round-1 ``k`` half as often, and the independent ``friction_harmonic_g0-8`` lost its
-#: friction (harmonic alone, 3.69 floors, unexplained, where the four give harmonic and
-#: friction at 1.31 floors).
+#: The multiples a joint fit may move an already fitted harmonic to, besides its own
+#: (:func:`joint_choices`): a round-1 choice can still be corrected beside another effect,
+#: while the population meets the round-1 ``k`` as often as before the three choices
+#: above were added (over all seven, an independent friction-plus-harmonic run lost its
+#: friction; docs/diagnosis.md section 4, session 17).
 JOINT_K_CHOICES = (0.5, 2.0, 3.0, 4.0)
 
 #: Values tried for the feedback's ``ride_load``: the contract's impacts-only armature (0)

@@ -189,8 +189,8 @@ def _discrete_splits(effect: str, fixed: dict, chosen: dict | None = None) -> li
     A separate global search per choice explores the continuous parameters properly for
     each; one search over all mixes the choices and misses narrow basins.  Once the
     effect has been fitted alone (round 1), later rounds keep its choice (``chosen``:
-    parameter -> value): four joint searches per round would cost more than all other
-    effects together (the armature's is searched again in the last round,
+    parameter -> value): a joint search per choice every round would cost more than all
+    other effects together (the armature's is searched again in the last round,
     :func:`_armature_again`).
     """
     chosen = chosen or {}
@@ -273,7 +273,7 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
     :func:`armature_choice`. ``job``: ``(problem, start, fixed, fit settings, seed)``.
 
     Why: later rounds keep the choices round 1 made with each effect alone (a harmonic
-    alone is a harmonic at its frequency; four joint searches of ``k`` per round would
+    alone is a harmonic at its frequency; a joint search per ``k`` every round would
     cost more than all other additions together). But fitted alone where friction and
     restitution carry the gap, the armature stands in for them, and its choice can say
     nothing of the shaker: on an independent seed-like recording with the impacts-only

@@ -7,7 +7,8 @@ what the diagnosis assumes of our rig shows up:
 - hard contact: instantaneous impacts (restitution ``e``), a body that sticks once its
   rebound is slower than ``stick_v``; the continuity circuit stays closed ``contact_s``
   after every impact (a real impact lasts tens to hundreds of microseconds);
-- fixed-step integration (``dt`` = 2 us) of flight under gravity and Coulomb friction;
+- fixed-step integration (``dt`` = 2 us) of flight under gravity and Coulomb friction,
+  the armature propagated exactly over each step;
 - Gamma switched instantly at each step's ``t_s``, wherever the drive phase is (``t0``
   puts the steps off the drive cycles);
 - a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
@@ -37,11 +38,12 @@ G = 9.81  # m/s^2
 @numba.njit(cache=True)
 def integrate(
     t_end, dt, w, amp_t, amp_v, mu, e, hk, ha, hpsi, mass_ratio, f_ratio, zeta, contact_s,
-    stick_v, fs,
+    stick_v, fs, step,
 ):  # fmt: skip
     """Contact state (1.0 closed) at each sample instant ``k / fs``, shape (n,), and the
     number of impacts. SI units; ``amp_t``/``amp_v``: the plate amplitude (m) from each
-    time on (instant switches)."""
+    time on (instant switches); ``step``: the armature's free propagator over ``dt``
+    (:func:`armature_step`), shape (2, 2)."""
     n_out = int(t_end * fs)
     contact = np.zeros(n_out, dtype=np.float32)
     wn = f_ratio * w  # armature natural frequency, rad/s
@@ -74,33 +76,52 @@ def integrate(
             g_eff = G * (1.0 + mu) if v > 0.0 else G * (1.0 - mu)
             if ap < -g_eff:
                 riding = False
+        # the armature's state at t + dt, exact: the impact test below compares the body
+        # with the plate where both really are (a plate position short of the armature's
+        # acceleration term made the body "land" again microseconds after each takeoff)
+        z1 = step[0, 0] * z + step[0, 1] * zd
+        zd1 = step[1, 0] * z + step[1, 1] * zd
         if not riding:
             acc = -G * (1.0 + mu) if v > 0.0 else -G * (1.0 - mu)
             y += v * dt + 0.5 * acc * dt * dt
             v += acc * dt
             t1 = t + dt
             ph1 = w * t1
-            xp1 = amp * (math.sin(ph1) + ha * math.sin(hk * ph1 + hpsi)) + z + zd * dt
-            vp1 = amp * w * (math.cos(ph1) + ha * hk * math.cos(hk * ph1 + hpsi)) + zd
+            xp1 = amp * (math.sin(ph1) + ha * math.sin(hk * ph1 + hpsi)) + z1
+            vp1 = amp * w * (math.cos(ph1) + ha * hk * math.cos(hk * ph1 + hpsi)) + zd1
             if y <= xp1:
                 v_rel = v - vp1  # < 0: the body hits the plate
                 impacts += 1
                 closed_until = t1 + contact_s
-                zd += mass_ratio * (1.0 + e) * v_rel  # the impact's momentum kicks the armature
+                zd1 += mass_ratio * (1.0 + e) * v_rel  # the impact's momentum kicks the armature
                 y = xp1
                 rebound = -e * v_rel
                 if rebound < stick_v:
                     riding = True
                 else:
                     v = vp1 + rebound
-        zdd = -2.0 * zeta * wn * zd - wn * wn * z
-        zd += zdd * dt
-        z += zd * dt
+        z = z1
+        zd = zd1
         while next_sample < n_out and next_sample <= t * fs:
             closed = riding or t < closed_until
             contact[next_sample] = 1.0 if closed else 0.0
             next_sample += 1
     return contact, impacts
+
+
+def armature_step(wn: float, zeta: float, dt: float) -> np.ndarray:
+    """Propagator of the free armature over ``dt`` (s): ``[z, zd](t + dt) = P @ [z, zd](t)``
+    for ``z'' + 2 zeta wn z' + wn^2 z = 0`` (``wn`` rad/s, ``0 <= zeta < 1``), shape (2, 2).
+    Exact, from the closed-form damped sinusoid."""
+    if wn <= 0.0:
+        return np.eye(2)
+    if not 0.0 <= zeta < 1.0:
+        raise ValueError(f"zeta {zeta}: the generator's armature is underdamped (0 <= zeta < 1)")
+    wd = wn * math.sqrt(1.0 - zeta * zeta)
+    decay, c, s = math.exp(-zeta * wn * dt), math.cos(wd * dt), math.sin(wd * dt)
+    return decay * np.array(
+        [[c + zeta * wn * s / wd, s / wd], [-wn * wn * s / wd, c - zeta * wn * s / wd]]
+    )
 
 
 def make_case(out: Path, **opt) -> dict:
@@ -110,6 +131,8 @@ def make_case(out: Path, **opt) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     w = 2.0 * math.pi * o["f"]
     gammas = np.round(np.arange(o["g0"], o["g1"] + 1e-9, o["dg"]), 6)
+    if o["descending"]:  # swept down: the other branch of every hysteresis loop
+        gammas = gammas[::-1]
     t_s = o["t0"] + o["step_s"] * np.arange(gammas.size)
     t_end = float(t_s[-1] + o["step_s"])
     amp_t = np.concatenate([[0.0], t_s])
@@ -117,6 +140,7 @@ def make_case(out: Path, **opt) -> dict:
     contact, impacts = integrate(
         t_end, o["dt"], w, amp_t, amp_v, o["mu"], o["e"], o["k"], o["a"], o["psi"],
         o["mass_ratio"], o["f_ratio"], o["zeta"], o["contact_s"], o["stick_v"], o["fs"],
+        armature_step(o["f_ratio"] * w, o["zeta"], o["dt"]),
     )  # fmt: skip
     shift = int(round(o["delay_s"] * o["fs"]))
     if shift:  # a sensor delay: the circuit reports every contact late
@@ -139,8 +163,9 @@ def make_case(out: Path, **opt) -> dict:
         "mass_kg": 0.2,
         "description": "independent generator (benchmarks/independent_rig.py)",
     }
+    columns = [volts] if o["no_drive"] else [volts, drive]
     if o["format"] == "wav":
-        data = np.stack([volts, drive], axis=1) / 4.0
+        data = np.stack(columns, axis=1) / 4.0
         sf.write(out / "rec.wav", data.astype(np.float32), int(o["fs"]), subtype="PCM_24")
         spec |= {"recording": "rec.wav", "channels": {"continuity": 0, "drive": 1}}
         spec["full_scale_v"] = 4.0
@@ -148,6 +173,8 @@ def make_case(out: Path, **opt) -> dict:
         frame = pd.DataFrame({"time_s": time_s, "cont": volts, "drv": drive})
         frame.to_csv(out / "rec.csv", index=False, float_format="%.10g")
         spec |= {"recording": "rec.csv", "channels": {"continuity": "cont", "drive": "drv"}}
+    if o["no_drive"]:
+        del spec["channels"]["drive"]
     (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     truth = {**o, "impacts": int(impacts), "effects": true_effects(o)}
     out.with_name(out.name + ".truth.json").write_text(json.dumps(truth, indent=1))
@@ -177,6 +204,7 @@ DEFAULTS = {
     "mass_ratio": 0.0, "f_ratio": 0.6, "zeta": 0.05,
     "contact_s": 8e-5, "stick_v": 2e-4, "noise_v": 0.02, "delay_s": 0.0,
     "contact_high": False, "format": "wav", "seed": 1, "dt": 2e-6,
+    "descending": False, "no_drive": False,
 }  # fmt: skip
 
 

@@ -66,6 +66,20 @@ CASES = {
     # recording's clock on every other step, but continuous with the body, which is what
     # the flights see; docs/diagnosis.md section 4, session 17)
     "harmonic_k0.5_g0-8": {"g1": 8.0, "step_s": 2.6, "a": 0.06, "k": 0.5, "psi": 2.5, "seed": 44},
+    # protocols other than ours: swept down, coarse or few steps, steps starting above the
+    # takeoff, long or short steps, chaos only, no drive channel, 8 kHz sampling
+    "friction_descending": {"mu": 0.2, "descending": True, "seed": 51},
+    "feedback_descending": {
+        "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.05, "descending": True, "seed": 55,
+    },
+    "restitution_no_drive": {"e": 0.45, "no_drive": True, "seed": 52},
+    "null_coarse_g1-4": {"g0": 1.0, "g1": 4.0, "dg": 0.2, "step_s": 3.0, "seed": 53},
+    "friction_coarse_g0-6": {"g1": 6.0, "dg": 0.25, "mu": 0.25, "seed": 54},
+    "friction_six_steps": {"g0": 1.5, "g1": 4.0, "dg": 0.5, "step_s": 4.0, "mu": 0.2, "seed": 58},
+    "friction_long_steps": {"g0": 1.0, "g1": 4.0, "dg": 0.5, "step_s": 40.0, "mu": 0.2, "seed": 63},
+    "gamma_scale_40hz_short_steps": {"s": 1.1, "step_s": 1.0, "f": 40.0, "seed": 57},
+    "restitution_chaotic_g5-8": {"g0": 5.0, "g1": 8.0, "dg": 0.1, "e": 0.4, "seed": 61},
+    "friction_8khz": {"fs": 8000.0, "mu": 0.25, "seed": 62},
 }  # fmt: skip
 
 

@@ -12,7 +12,9 @@ what the diagnosis assumes of our rig shows up:
 - Gamma switched instantly at each step's ``t_s``, wherever the drive phase is (``t0``
   puts the steps off the drive cycles);
 - a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
-- the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV.
+- the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV;
+- outside the library: a sensor delay, a restitution that changes with impact speed,
+  random plate vibration (a sum of sinusoids of random frequencies in 5-200 Hz).
 
 Use: ``python benchmarks/independent_rig.py OUT_DIR [--mu 0.2 --e 0.4 ...]`` writes
 ``OUT_DIR/run.yaml`` and the recording, and ``OUT_DIR.truth.json`` beside the folder
@@ -38,13 +40,22 @@ G = 9.81  # m/s^2
 @numba.njit(cache=True)
 def integrate(
     t_end, dt, w, amp_t, amp_v, mu, e, hk, ha, hpsi, mass_ratio, f_ratio, zeta, contact_s,
-    stick_v, fs, step,
+    stick_v, fs, step, e_slope, e_ref_v, vib_w, vib_a, vib_phi,
 ):  # fmt: skip
     """Contact state (1.0 closed) at each sample instant ``k / fs``, shape (n,), and the
     number of impacts. SI units; ``amp_t``/``amp_v``: the plate amplitude (m) from each
     time on (instant switches); ``step``: the armature's free propagator over ``dt``
-    (:func:`armature_step`), shape (2, 2)."""
+    (:func:`armature_step`), shape (2, 2); restitution ``e + e_slope (|u| - e_ref_v)``
+    at impact speed ``|u|`` (clipped to [0, 0.99]); random plate vibration: sinusoids of
+    ``vib_w`` (rad/s), ``vib_a`` (m), ``vib_phi`` (rad), shape (N,) each."""
     n_out = int(t_end * fs)
+    # the vibration's phasors at t, rotated by one step each step (no trig in the loop)
+    vc = np.cos(vib_phi)
+    vs = np.sin(vib_phi)
+    rc = np.cos(vib_w * dt)
+    rs = np.sin(vib_w * dt)
+    xv = np.sum(vib_a * vs)
+    vv = np.sum(vib_a * vib_w * vc)
     contact = np.zeros(n_out, dtype=np.float32)
     wn = f_ratio * w  # armature natural frequency, rad/s
     z = 0.0  # armature displacement (m) and velocity
@@ -62,13 +73,26 @@ def integrate(
             k_amp += 1
         amp = amp_v[k_amp]
         ph = w * t
-        xp = amp * (math.sin(ph) + ha * math.sin(hk * ph + hpsi)) + z
-        vp = amp * w * (math.cos(ph) + ha * hk * math.cos(hk * ph + hpsi)) + zd
+        av = 0.0
+        for j in range(vib_w.shape[0]):
+            av -= vib_a[j] * vib_w[j] * vib_w[j] * vs[j]
+        xp = amp * (math.sin(ph) + ha * math.sin(hk * ph + hpsi)) + z + xv
+        vp = amp * w * (math.cos(ph) + ha * hk * math.cos(hk * ph + hpsi)) + zd + vv
         ap = (
             -amp * w * w * (math.sin(ph) + ha * hk * hk * math.sin(hk * ph + hpsi))
             - 2.0 * zeta * wn * zd
             - wn * wn * z
+            + av
         )
+        # the vibration at t + dt
+        xv1 = 0.0
+        vv1 = 0.0
+        for j in range(vib_w.shape[0]):
+            c = vc[j] * rc[j] - vs[j] * rs[j]
+            vs[j] = vs[j] * rc[j] + vc[j] * rs[j]
+            vc[j] = c
+            xv1 += vib_a[j] * vs[j]
+            vv1 += vib_a[j] * vib_w[j] * c
         if riding:
             y = xp
             v = vp
@@ -87,21 +111,24 @@ def integrate(
             v += acc * dt
             t1 = t + dt
             ph1 = w * t1
-            xp1 = amp * (math.sin(ph1) + ha * math.sin(hk * ph1 + hpsi)) + z1
-            vp1 = amp * w * (math.cos(ph1) + ha * hk * math.cos(hk * ph1 + hpsi)) + zd1
+            xp1 = amp * (math.sin(ph1) + ha * math.sin(hk * ph1 + hpsi)) + z1 + xv1
+            vp1 = amp * w * (math.cos(ph1) + ha * hk * math.cos(hk * ph1 + hpsi)) + zd1 + vv1
             if y <= xp1:
                 v_rel = v - vp1  # < 0: the body hits the plate
                 impacts += 1
                 closed_until = t1 + contact_s
-                zd1 += mass_ratio * (1.0 + e) * v_rel  # the impact's momentum kicks the armature
+                e_u = min(max(e + e_slope * (-v_rel - e_ref_v), 0.0), 0.99)
+                zd1 += mass_ratio * (1.0 + e_u) * v_rel  # the impact's momentum kicks the armature
                 y = xp1
-                rebound = -e * v_rel
+                rebound = -e_u * v_rel
                 if rebound < stick_v:
                     riding = True
                 else:
                     v = vp1 + rebound
         z = z1
         zd = zd1
+        xv = xv1
+        vv = vv1
         while next_sample < n_out and next_sample <= t * fs:
             closed = riding or t < closed_until
             contact[next_sample] = 1.0 if closed else 0.0
@@ -124,6 +151,17 @@ def armature_step(wn: float, zeta: float, dt: float) -> np.ndarray:
     )
 
 
+def vibration(rms_m: float, seed: int, n: int = 24, band_hz=(5.0, 200.0)):
+    """Random plate vibration as ``n`` sinusoids of frequencies drawn uniformly in
+    ``band_hz``, random phases, equal amplitudes of ``rms_m`` in all (m): ``(w rad/s,
+    a m, phi rad)``, shape (n,) each; empty arrays for ``rms_m = 0``."""
+    if rms_m <= 0.0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    rng = np.random.default_rng([seed, 7])  # apart from the noise's stream
+    w = 2.0 * math.pi * rng.uniform(band_hz[0], band_hz[1], n)
+    return w, np.full(n, rms_m * math.sqrt(2.0 / n)), rng.uniform(0.0, 2.0 * math.pi, n)
+
+
 def make_case(out: Path, **opt) -> dict:
     """Write one run folder ``out`` and ``out.truth.json``; returns the truth."""
     o = dict(DEFAULTS, **opt)
@@ -141,6 +179,7 @@ def make_case(out: Path, **opt) -> dict:
         t_end, o["dt"], w, amp_t, amp_v, o["mu"], o["e"], o["k"], o["a"], o["psi"],
         o["mass_ratio"], o["f_ratio"], o["zeta"], o["contact_s"], o["stick_v"], o["fs"],
         armature_step(o["f_ratio"] * w, o["zeta"], o["dt"]),
+        o["e_slope"], o["e_ref_v"], *vibration(o["vib_rms"], o["seed"]),
     )  # fmt: skip
     shift = int(round(o["delay_s"] * o["fs"]))
     if shift:  # a sensor delay: the circuit reports every contact late
@@ -176,9 +215,17 @@ def make_case(out: Path, **opt) -> dict:
     if o["no_drive"]:
         del spec["channels"]["drive"]
     (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
-    truth = {**o, "impacts": int(impacts), "effects": true_effects(o)}
+    truth = {**o, "impacts": int(impacts), "effects": true_effects(o), "outside": outside(o)}
     out.with_name(out.name + ".truth.json").write_text(json.dumps(truth, indent=1))
     return truth
+
+
+def outside(o: dict) -> list[str]:
+    """Effects outside the library (CONTRACTS.md section 5) that the options switch on:
+    a run with any of them should come out unexplained."""
+    names = {"delay_s": "sensor_delay", "e_slope": "velocity_dependent_restitution"}
+    out = [name for key, name in names.items() if o[key] != 0]
+    return out + (["random_vibration"] if o["vib_rms"] > 0 else [])
 
 
 def true_effects(o: dict) -> dict:
@@ -205,6 +252,7 @@ DEFAULTS = {
     "contact_s": 8e-5, "stick_v": 2e-4, "noise_v": 0.02, "delay_s": 0.0,
     "contact_high": False, "format": "wav", "seed": 1, "dt": 2e-6,
     "descending": False, "no_drive": False,
+    "e_slope": 0.0, "e_ref_v": 0.3, "vib_rms": 0.0,
 }  # fmt: skip
 
 

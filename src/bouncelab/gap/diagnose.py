@@ -453,6 +453,7 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
             "explained_ratio": select_settings.explained_ratio,
             "unexplained_ratio": select_settings.unexplained_ratio,
             "max_effects": select_settings.max_effects,
+            "settled_ratio": select_settings.settled_ratio,
             "phase_tol": PHASE_TOL,
             "phase_sigmas": PHASE_SIGMAS,
             "phase_min_steps": PHASE_MIN_STEPS,

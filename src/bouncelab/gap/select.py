@@ -288,12 +288,11 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
     nothing of the shaker: on an independent seed-like recording with the impacts-only
     armature (m/M 0.04; ``benchmarks/independent_rig.py`` before its session-18 fix)
     round 1 took the loaded one at m/M 0.48 and f_ratio 2.8; kept, round 3 searched only
-    that one (1.97 floors held out)
-    and took a Gamma miscalibration (1.84); searched again, the impacts-only armature
-    came out at 0.83 floors. In the last round only, because each search of the armature
-    costs as much as all other additions of a round (in every later round it made
-    ``raw/sweep_g0-8`` 142 s instead of 102, goal 120); an armature taken earlier keeps
-    its choice free in the joint fits after it.
+    that one (1.97 floors held out) and took a Gamma miscalibration (1.84); searched
+    again, the impacts-only armature came out at 0.83 floors. In the last round only,
+    because each search of the armature costs as much as all other additions of a round
+    (in every later round it made ``raw/sweep_g0-8`` 142 s instead of 102, goal 120); an
+    armature taken earlier keeps its choice free in the joint fits after it.
 
     Each other choice is searched twice and the better on the fit steps kept
     (:func:`_best_of`): every parameter at once, as every round searches, and the

@@ -1,7 +1,7 @@
 """Is a blind case's parameter miss the search's or the objective's?
 
     python benchmarks/bench_truth_vs_fit.py BLIND_OUT [--cases NAME ...] [--draws 20]
-        [--record benchmarks/results/truth_vs_fit.json]
+        [--record benchmarks/results/truth_vs_fit.json] [--note TEXT]
 
 ``BLIND_OUT`` is the folder of a blind validation run (``python -m bouncelab.gap.blind
 --out BLIND_OUT``: ``runs/``, ``diagnoses/``, ``truth/``, ``scores.json``). For each case
@@ -168,6 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cases", nargs="*", help="case names (default: the parameter misses)")
     p.add_argument("--draws", type=int, default=20, help="fresh ensembles per point")
     p.add_argument("--record", help="write the results to this JSON file")
+    p.add_argument("--note", default="", help="provenance of BLIND_OUT, kept in the record")
     args = p.parse_args(argv)
     out = Path(args.blind_out)
     scores = json.loads((out / "scores.json").read_text())
@@ -195,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.record:
         rec = {
             "blind_out": str(out),
+            "note": args.note,
             "draws": args.draws,
             "tolerance": {"sigmas": SIGMAS, "floors": DATA_RESOLUTION},
             "cases": results,

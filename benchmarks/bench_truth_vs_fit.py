@@ -26,8 +26,8 @@ The truth is scored with the final model's effects; an effect the truth has and 
 model lacks is added, one the model has and the truth lacks is set to its null value.
 The rig's armature carries the riding body, but the contract's two ``ride_load``
 choices are both scored and the better one taken (``ride_load`` is not a scored
-parameter). Also recorded: the steps that make most of the difference (Gamma, fit or
-held out, the per-step gap of each point in floors of that step).
+parameter). Also recorded: the fit steps that make most of the difference (Gamma, the
+per-step gap of each point in floors of that step, its share of the difference).
 
 Reads the truth, so it is a benchmark of the diagnosis, never part of it.
 """
@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from bouncelab.flights import extract_run
-from bouncelab.gap.fit import DATA_RESOLUTION, make_problem, step_gaps
+from bouncelab.gap.fit import DATA_RESOLUTION, fresh_step_gaps, make_problem
 from bouncelab.gap.select import INERT
 from bouncelab.physics.model import EFFECT_ORDER, Model
 from bouncelab.runs import load_run
@@ -85,17 +85,6 @@ def truth_points(diagnosis: dict, true_params: dict) -> tuple[str, list[dict]]:
     return name, [{**base, "ride_load": v} for v in (0.0, 1.0)]
 
 
-def score_points(problem, model_name: str, points: list[dict], draws: int) -> np.ndarray:
-    """Capped per-step gaps (rad) of each point on ``draws`` fresh ensembles, shape
-    (points, draws, G)."""
-    out = []
-    for p in points:
-        m = Model.parse(model_name, p)
-        shifts = [k / (draws + 1) for k in range(1, draws + 1)]
-        out.append([problem.clipped(step_gaps(problem, m, shift=sh)) for sh in shifts])
-    return np.asarray(out)
-
-
 def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
     """The record of one case (see the module docstring)."""
     run_dir = out / "runs" / name
@@ -115,14 +104,17 @@ def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
     problem = replace(problem, n_draws=int(refine.get("n_draws", 1)))
     final = diagnosis["final_model"]
     name_t, truths = truth_points(diagnosis, true_params)
-    gaps_fit = score_points(problem, final["model"], [final["params"]], draws)[0]
-    gaps_truth = score_points(problem, name_t, truths, draws)
-
+    # capped per-step gaps (rad), shape (draws, G), of the fit and of each truth point
+    gaps_fit = problem.clipped(fresh_step_gaps(Model.parse(final["model"], final["params"]),
+                                               problem, draws))  # fmt: skip
+    gaps_truth = [
+        problem.clipped(fresh_step_gaps(Model.parse(name_t, p), problem, draws)) for p in truths
+    ]
     fit_mask, w = problem.fit, problem.weights * problem.fit
     unit = problem.mean(problem.floor, fit_mask)  # one noise floor of the fit steps, rad
 
     def objective(g):  # (draws, G) -> (draws,), floors
-        return (g @ w / w.sum()) / unit
+        return np.array([problem.mean(row, fit_mask) for row in g]) / unit
 
     o_fit = objective(gaps_fit)
     o_truths = [objective(g) for g in gaps_truth]
@@ -140,7 +132,6 @@ def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
     steps = [
         {
             "gamma": float(problem.steps["gamma"].iloc[i]),
-            "fit_step": bool(fit_mask[i]),
             "floor_rad": float(problem.floor[i]),
             "fit_floors": float(per_fit[i] / problem.floor[i]),
             "truth_floors": float(per_truth[i] / problem.floor[i]),

@@ -1326,21 +1326,24 @@ def bootstrap_params(
     return decoded[best]
 
 
-def fresh_objectives(model: Model, problem: Problem, draws: int = NOISE_DRAWS) -> np.ndarray:
-    """Fit-step objective (rad) of ``model`` on ``draws`` fresh ensembles, shape (draws,):
+def fresh_step_gaps(model: Model, problem: Problem, draws: int = NOISE_DRAWS) -> np.ndarray:
+    """Per-step gaps (rad) of ``model`` on ``draws`` fresh ensembles, shape (draws, G):
     the member offsets shifted by ``k / (draws + 1)`` of :data:`MEMBER_SPREAD`
     (:func:`step_gaps`), ``k = 1 .. draws``, none of them the fits' own ensemble.
 
     Why: the best evaluation of a fit is the luckiest draw of the orbit lottery among
-    hundreds; on fresh ensembles two fits compare without that winner's curse.
+    hundreds; on fresh ensembles two points compare without that winner's curse.
     """
     buffer = OutputBuffer()
     return np.array(
-        [
-            problem.mean(step_gaps(problem, model, buffer, shift=k / (draws + 1)), problem.fit)
-            for k in range(1, draws + 1)
-        ]
+        [step_gaps(problem, model, buffer, shift=k / (draws + 1)) for k in range(1, draws + 1)]
     )
+
+
+def fresh_objectives(model: Model, problem: Problem, draws: int = NOISE_DRAWS) -> np.ndarray:
+    """Fit-step objective (rad) of ``model`` on ``draws`` fresh ensembles
+    (:func:`fresh_step_gaps`), shape (draws,)."""
+    return np.array([problem.mean(g, problem.fit) for g in fresh_step_gaps(model, problem, draws)])
 
 
 def objective_noise(fit: FitResult, problem: Problem, draws: int = NOISE_DRAWS) -> float:

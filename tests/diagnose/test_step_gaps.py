@@ -94,6 +94,46 @@ def test_protocol_arrays_match_simulate_protocol():
         np.testing.assert_array_equal(arrays["settled"][mine], ref["settled"].to_numpy())
 
 
+def test_several_draws_are_the_mean_of_each_draws_capped_gaps(problem):
+    """Reference: the mean of capped per-draw gaps, each draw computed alone (one
+    ensemble, ``n_draws`` 1, shifted by k / n), as ``step_gaps`` documents: exactly."""
+    from dataclasses import replace
+
+    model = Model.parse("friction+restitution", {"mu": 0.15, "e": 0.45})
+    three = replace(problem, n_draws=3)
+    alone = [step_gaps(replace(problem, n_draws=1), model, shift=k / 3) for k in range(3)]
+    np.testing.assert_array_equal(step_gaps(three, model), np.mean(three.clipped(alone), axis=0))
+
+
+def test_the_gap_kernel_reads_members_in_blocks_or_scattered_alike(problem):
+    """``ensemble_gaps`` finds each member's flights as a block when the members come in
+    order and by a mask otherwise: shuffling the members' blocks (each kept in time
+    order) changes no number."""
+    from bouncelab.gap._kernels import ensemble_gaps
+    from bouncelab.gap.distances import DEFAULT_ALPHA, KEY_SPAN
+
+    model = Model.parse("restitution", {"e": 0.5})
+    proto = problem.protocol
+    sim = protocol_flight_times(
+        model, proto["gamma"].to_numpy(), proto["cycles"].to_numpy(), 10, 1.0 + member_offsets(3)
+    )
+    k = problem.kernel_inputs
+
+    def gaps(order):
+        a = {name: v[order] for name, v in sim.items()}
+        return ensemble_gaps(
+            a["member"], k.protocol_step[a["step"]], a["T"], a["settled"], 3,
+            float(problem.min_T), k.grid, k.data_t_step, k.data_t_val, k.data_p_step,
+            k.data_p_val, k.directions, DEFAULT_ALPHA, k.scale, KEY_SPAN,
+        )  # fmt: skip
+
+    in_order = np.arange(len(sim["T"]))
+    blocks = [np.flatnonzero(sim["member"] == m) for m in (2, 0, 1)]
+    scattered = np.concatenate(blocks)
+    assert np.any(np.diff(sim["member"][scattered]) < 0)
+    np.testing.assert_array_equal(gaps(in_order), gaps(scattered))
+
+
 def test_a_reused_output_buffer_changes_no_result():
     """The kernel's output array kept between calls (``OutputBuffer``): each call's
     arrays equal a fresh call's, and none shares the buffer's memory (a later call

@@ -117,7 +117,7 @@ def _sorted_by_step(step, value, span):  # pragma: no cover - compiled
     return step.copy(), out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, parallel=True)
 def ensemble_gaps(
     member, step, t, settled, n_members, min_t, grid,
     data_t_step, data_t_val, data_p_step, data_p_val, directions, alpha, scale, span,
@@ -148,11 +148,31 @@ def ensemble_gaps(
     """
     n_dir = directions.shape[0]
     out = np.zeros((n_members, grid.shape[0]))
-    for m in range(n_members):
-        mine = (member == m) & (t >= min_t)
-        s_m = step[mine]
-        t_m = t[mine]
-        ok = settled[mine]
+    # each member's flights: a block of the arrays when the members come in order (as
+    # protocol_flight_times gives them), found once, instead of a mask over all flights
+    # per member (most of this kernel's time on chatter-rich runs)
+    in_blocks = True
+    for i in range(1, member.shape[0]):
+        if member[i] < member[i - 1]:
+            in_blocks = False
+            break
+    bounds = (
+        np.searchsorted(member, np.arange(n_members + 1)) if in_blocks else np.zeros(0, np.int64)
+    )
+    # members in parallel (each writes its own row: the same numbers on any thread count);
+    # a fit's evaluation pool sets its workers to one thread each
+    for m in numba.prange(n_members):
+        if in_blocks:
+            lo, hi = bounds[m], bounds[m + 1]
+            long_enough = t[lo:hi] >= min_t
+            s_m = step[lo:hi][long_enough]
+            t_m = t[lo:hi][long_enough]
+            ok = settled[lo:hi][long_enough]
+        else:
+            mine = (member == m) & (t >= min_t)
+            s_m = step[mine]
+            t_m = t[mine]
+            ok = settled[mine]
         fs, fv = _sorted_by_step(s_m[ok], t_m[ok], span)
         w_t, _, _ = w1_by_step(grid, data_t_step, data_t_val, fs, fv)
         n = s_m.shape[0]

@@ -252,6 +252,13 @@ def diagnose_flights(
     fixed: dict = {}
     if calibration is not None and fix_calibration:
         fixed = {p: float(calibration[k]) for k, p in CALIBRATION_PARAMS.items()}
+
+    def phases_reason(model: Model) -> str | None:
+        # the takeoff-phase rule of the verdict, on the selection's current model
+        sim = best_member_simulation(problem, model)
+        cmp = compare_features(problem.data_table, sim, steps=problem.steps)
+        return phase_shift_reason(sharp_phase_offset(problem, cmp))
+
     sel = forward_select(
         problem,
         floor,
@@ -263,6 +270,7 @@ def diagnose_flights(
         seed=seed,
         workers=workers,
         progress=progress,
+        unsettled=phases_reason,
     )
     base_fit: FitResult = sel["baseline"]
     g_base = heldout_gap(base_fit, problem)
@@ -366,6 +374,8 @@ def diagnose_flights(
         # friction's mu and restitution's e refitted on each half of the Gamma steps
         "strength_by_half": by_half,
         "stop": sel["stop"],
+        # the takeoff-phase reasons that kept the selection going within the floor
+        "went_on": sel["went_on"],
         "rounds": [
             [
                 {

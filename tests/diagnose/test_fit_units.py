@@ -220,9 +220,11 @@ def scripted_fit(name: str, params: dict, gap: float) -> FitResult:
 def script_selection(monkeypatch, fake_fit_many, refined=None):
     """Make :func:`bouncelab.gap.select.forward_select` run on scripted fits: ``fit_many``
     is ``fake_fit_many``, the held-out gap is each fit's objective, no simulated cycles
-    are counted, and the refinement's settings are ``refined`` (None: no refinement)."""
+    are counted, and the refinement's settings are ``refined`` (None: no refinement).
+    One optimiser seed per job (the last round's armature seeds have a test of their own)."""
     from bouncelab.gap import select
 
+    monkeypatch.setattr(select, "ARMATURE_SEEDS", 1)
     monkeypatch.setattr(select, "fit_many", fake_fit_many)
     monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
     monkeypatch.setattr(select, "refine_settings", lambda *a, **k: refined)
@@ -589,6 +591,59 @@ def test_min_contact_of_a_contact_sampled_at_instants_is_its_mean():
     contacts = np.concatenate([contacts, rng.uniform(2e-3, 2e-2, 200)])
     got = min_contact_T(_Rate(), _contact_table(rng.permutation(contacts)))
     assert got == pytest.approx(2 * np.pi * 30.0 * 8e-5, rel=0.05)
+
+
+@pytest.mark.parametrize("first_seed_gap", [2.0, 0.8])
+def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_least(
+    monkeypatch, first_seed_gap
+):
+    """Reference: a scripted selection. Round 1 takes restitution (10 -> 5). Round 2, the
+    last with ``max_effects`` 2, fits the armature beside it with ``ARMATURE_SEEDS`` (3)
+    optimiser seeds ``seed + j * SEED_STRIDE``, which end at 2.0, 1.2 and 1.6 floors (the
+    orbit lottery of one search); the least on the fit steps (1.2) is the armature the
+    round compares, and it beats a Gamma miscalibration at 1.5 that would win against the
+    first seed's 2.0 (and within the tie, 0.25 floors, as the simpler addition). Round 1
+    and the other additions: one seed; the other ``ride_load`` choice's searches too.
+    When the first seed's armature is the proposal within one floor (0.8), it settles
+    the run: no other seed, no other choice."""
+    from bouncelab.gap import select
+
+    calls = []
+    by_seed = {0: first_seed_gap, select.SEED_STRIDE: 1.2, 2 * select.SEED_STRIDE: 1.6}
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
+            calls.append((name, seed))
+            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
+            if name == "restitution+feedback":
+                out.append(scripted_fit(name, {**params, "zeta": seed}, by_seed[seed]))
+            elif name == "restitution+gamma_scale":
+                out.append(scripted_fit(name, {"s": 1.05}, 1.5))
+            elif name == "restitution":
+                out.append(scripted_fit(name, {}, 5.0))
+            else:
+                out.append(scripted_fit(name, params if "feedback" in name else {}, 9.0))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)
+    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
+        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
+    seeds = [s for n, s in calls if n == "restitution+feedback"]
+    if first_seed_gap < 1.0:
+        assert sel["final"].objective == first_seed_gap and seeds == [0]
+    else:
+        assert sel["final"].objective == 1.2
+        assert sel["final"].model.params["zeta"] == select.SEED_STRIDE
+        assert seeds[:3] == [0, select.SEED_STRIDE, 2 * select.SEED_STRIDE]
+        assert seeds[3:] == [0, 0]  # the other choice, every parameter and the armature's own
+    # round 1's armature (each ride_load) and the miscalibration: one seed each
+    assert [s for n, s in calls if n in ("feedback", "restitution+gamma_scale")] == [0, 0, 0]
 
 
 @pytest.mark.parametrize("phases_off", [False, True])

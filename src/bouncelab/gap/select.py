@@ -63,6 +63,17 @@ CANDIDATES = EFFECT_ORDER
 #: Discrete parameters fitted as separate searches: name -> (effect, choices).
 SPLITS = {"k": ("harmonic", K_CHOICES), "ride_load": ("feedback", RIDE_LOAD_CHOICES)}
 
+#: Optimiser seeds of the armature's joint fit in the last round (the least fit-step
+#: objective kept). Why: one differential-evolution search of the armature beside two
+#: other effects ends anywhere between 1.2 and 2.8 floors on the blind ``seed_like_b``
+#: (four seeds; the truth 1.53), and the last round then compares that draw with a
+#: Gamma miscalibration within the ``tie``: with other diagnosis seeds the blind
+#: ``g_seed_like`` (2.28 against 2.32 floors) and ``seed_like_c`` (1.64 against 1.88)
+#: took the miscalibration, the simpler of two tied additions (docs/diagnosis.md,
+#: section 4, session 21). Seeds ``seed + j * SEED_STRIDE``, ``j < ARMATURE_SEEDS``.
+ARMATURE_SEEDS = 3
+SEED_STRIDE = 7919
+
 #: Fresh ensembles on which a later round compares its armature choices, and how many
 #: standard errors of their difference the other choice must win by (:func:`armature_choice`).
 CHOICE_DRAWS = 4
@@ -277,6 +288,38 @@ def _proposal(tried: list[tuple[str, FitResult]], problem: Problem, floor: float
     return live[pick_addition(scored, tie)]
 
 
+def _settled(tried, problem: Problem, floor: float, settings: SelectSettings) -> bool:
+    """Whether the armature of ``tried`` is the round's proposal and brings the held-out
+    gap within ``settled_ratio`` floors: more searches of it could then only move its
+    parameters along the valley the flight times leave flat (:func:`_armature_again`)."""
+    mine = dict(tried)
+    pick = _proposal(tried, problem, floor, settings.tie)
+    settled = heldout_gap(mine["feedback"], problem) <= settings.settled_ratio * floor
+    return pick is not None and pick[0] == "feedback" and settled
+
+
+def _armature_seeds(tried, job, pool, progress, floor, settings):
+    """``tried`` of the last round with the armature's joint fit run again with
+    :data:`ARMATURE_SEEDS` - 1 more optimiser seeds (``seed + j * SEED_STRIDE``), the
+    least fit-step objective kept (:func:`_best_of`). ``job``: the round's
+    :func:`fit_model` job of that fit (None: no armature in the round).
+
+    Skipped when the armature already settles the run (:func:`_settled`), for the time
+    goal (``raw/sweep_g0-8`` is settled at 0.81 floors by its armature), and when no
+    armature is added. Why more seeds: see :data:`ARMATURE_SEEDS`.
+    """
+    if job is None or ARMATURE_SEEDS <= 1:
+        return tried
+    problem, _name, _prev, _fixed, _search, _settings, seed, *_more = job
+    if _settled(tried, problem, floor, settings):
+        return tried
+    mine = dict(tried)
+    jobs = [(*job[:6], seed + j * SEED_STRIDE, *job[7:]) for j in range(1, ARMATURE_SEEDS)]
+    fits = [mine["feedback"], *fit_many(jobs, pool, progress)]
+    best = _best_of("feedback", ["feedback"] * len(fits), fits)
+    return [(e, best if e == "feedback" else f) for e, f in tried]
+
+
 def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
     """``tried`` of the last round the selection has room for (``max_effects``), with the
     armature searched again with its other ``ride_load`` choices and chosen by
@@ -312,11 +355,7 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
     """
     problem, start, fixed, fit_settings, seed = job
     mine = dict(tried)
-    if "feedback" not in mine:
-        return tried
-    pick = _proposal(tried, problem, floor, settings.tie)
-    settled = heldout_gap(mine["feedback"], problem) <= settings.settled_ratio * floor
-    if pick is not None and pick[0] == "feedback" and settled:
+    if "feedback" not in mine or _settled(tried, problem, floor, settings):
         return tried
     name = mine["feedback"].model.name
     others = [v for v in RIDE_LOAD_CHOICES if v != kept]
@@ -430,6 +469,7 @@ def forward_select(
                 for name, (owner, _values) in SPLITS.items()
                 if e == owner
             }
+            last = len(accepted) == settings.max_effects - 1
             for eff in todo:
                 for extra in _discrete_splits(eff, fixed, round1):
                     name = model_name([*effects, eff])
@@ -443,7 +483,11 @@ def forward_select(
                     )  # fmt: skip
             fits = fit_many(jobs, pool, progress)
             tried = [(eff, _best_of(eff, owners, fits)) for eff in todo]
-            last = len(accepted) == settings.max_effects - 1
+            if last and rounds:
+                tried = _armature_seeds(
+                    tried, jobs[owners.index("feedback")] if "feedback" in owners else None,
+                    pool, progress, floor, settings,
+                )  # fmt: skip
             if last and "ride_load" in round1 and "ride_load" not in fixed:
                 tried = _armature_again(
                     tried, round1["ride_load"], (problem, prev, fixed, fit_settings, seed),

@@ -16,7 +16,8 @@ out-of-library case), and the largest parameter error of each seed.
 Default cases: the combinations, where session 20 saw the seed move the answer. Layout of
 ``OUT``: one blind output folder per seed (``seed<N>/``), reused when present, so a seed
 already run (e.g. ``python -m bouncelab.gap.blind --out OUT/seed1 --seed 1``) is not run
-again. Reads the truth only through the blind harness's scoring, after each diagnosis.
+again (its ``diagnose_s`` is then None). Reads the truth only through the blind
+harness's scoring, after each diagnosis.
 """
 
 from __future__ import annotations
@@ -56,9 +57,12 @@ def max_param_error(score: dict) -> float | None:
     return max(errs) if errs else None
 
 
-def seeds_record(per_seed: dict[int, dict]) -> dict:
+def seeds_record(per_seed: dict[int, dict], reused: dict[int, set] | None = None) -> dict:
     """Per case and seed: the selection, ``set_right``, ``verdict_right``,
-    ``max_param_error``; per case the counts over seeds; overall the counts."""
+    ``max_param_error``, ``diagnose_s`` (None where the diagnosis was ``reused``: seed ->
+    case names read from an earlier run); per case the counts over seeds; overall the
+    counts."""
+    reused = reused or {}
     names = sorted({n for res in per_seed.values() for n in res["cases"]})
     cases = {}
     for name in names:
@@ -74,7 +78,9 @@ def seeds_record(per_seed: dict[int, dict]) -> dict:
                 "verdict_right": verdict_right(sc),
                 "max_param_error": max_param_error(sc),
                 "param_errors": sc["param_errors"],
-                "diagnose_s": res.get("timings", {}).get(name, {}).get("diagnose_s"),
+                "diagnose_s": None
+                if name in reused.get(seed, ())
+                else res.get("timings", {}).get(name, {}).get("diagnose_s"),
             }
         n = len(rows)
         cases[name] = {
@@ -117,13 +123,15 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print(f"error: {args.cases}: no case named {sorted(missing)}", file=sys.stderr)
         return 2
-    per_seed = {}
+    per_seed, reused = {}, {}
     for seed in args.seeds:
         print(f"--- diagnosis seed {seed}", flush=True)
-        per_seed[seed] = run_blind(
-            cases, Path(args.out) / f"seed{seed}", seed=seed, workers=args.workers
-        )
-    record = seeds_record(per_seed)
+        out = Path(args.out) / f"seed{seed}"
+        reused[seed] = {
+            c["name"] for c in cases if (out / "diagnoses" / f"{c['name']}.json").is_file()
+        }
+        per_seed[seed] = run_blind(cases, out, seed=seed, workers=args.workers)
+    record = seeds_record(per_seed, reused)
     record["machine"] = {"python": platform.python_version(), "processor": platform.machine()}
     record["note"] = args.note
     print(f"{'case':24s} {'set right':>10s} {'verdict':>8s} {'params':>7s}  per seed")

@@ -255,9 +255,7 @@ def diagnose_flights(
 
     def phases_reason(model: Model) -> str | None:
         # the takeoff-phase rule of the verdict, on the selection's current model
-        sim = best_member_simulation(problem, model)
-        cmp = compare_features(problem.data_table, sim, steps=problem.steps)
-        return phase_shift_reason(sharp_phase_offset(problem, cmp))
+        return phase_shift_reason(sharp_phase_offset(problem, _features(problem, model)))
 
     sel = forward_select(
         problem,
@@ -329,11 +327,8 @@ def diagnose_flights(
 
     final: FitResult = sel["final"]
     final_gap = heldout_gap(final, problem)
-    # features read where the model matches the data best, as the gaps are
-    base_sim = best_member_simulation(problem, base_fit.model)
-    final_sim = best_member_simulation(problem, final.model) if sel["accepted"] else base_sim
-    cmp_base = compare_features(problem.data_table, base_sim, steps=problem.steps)
-    cmp_final = compare_features(problem.data_table, final_sim, steps=problem.steps)
+    cmp_base = _features(problem, base_fit.model)
+    cmp_final = _features(problem, final.model) if sel["accepted"] else cmp_base
 
     reasons = []
     if final_gap > select_settings.unexplained_ratio * floor:
@@ -421,6 +416,13 @@ def diagnose_flights(
     if include_timings:
         out["timings"] = {"total_s": time.perf_counter() - t0}
     return _json_safe(out)
+
+
+def _features(problem, model: Model) -> dict:
+    """:func:`compare_features` of the data and ``model``, read where the model matches
+    the data best (:func:`best_member_simulation`), as the gaps are."""
+    sim = best_member_simulation(problem, model)
+    return compare_features(problem.data_table, sim, steps=problem.steps)
 
 
 def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> dict:

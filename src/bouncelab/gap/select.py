@@ -445,15 +445,21 @@ def forward_select(
         current = base_fit
         effects = list(base_model.effects)
         rounds, accepted, went_on = [], [], []
+
+        def shows_more(model) -> bool:
+            """Whether the data shows ``model`` wrong beyond the flight times (the reason
+            kept in ``went_on``): within the floor, the selection then goes on."""
+            reason = unsettled(model) if unsettled is not None else None
+            if reason:
+                went_on.append(reason)
+            return bool(reason)
+
         stop = "max_effects"
         while len(accepted) < settings.max_effects:
             g_cur = heldout_gap(current, problem)
             within = g_cur <= settings.explained_ratio * floor
-            if within and rounds and unsettled is not None:
-                reason = unsettled(current.model)
-                if reason:
-                    within = False  # within the floor, but the data says more
-                    went_on.append(reason)
+            if within and rounds and shows_more(current.model):
+                within = False
             if within and rounds:
                 stop = "within_floor"
                 break
@@ -494,11 +500,8 @@ def forward_select(
                     pool, progress, floor, settings,
                 )  # fmt: skip
             rounds.append(tried)
-            if within and unsettled is not None:
-                reason = unsettled(current.model)
-                if reason:
-                    within = False
-                    went_on.append(reason)
+            if within and shows_more(current.model):
+                within = False
             if within:  # the first round is always fitted: its candidates are reported
                 stop = "within_floor"
                 break

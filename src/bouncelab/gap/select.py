@@ -389,10 +389,10 @@ def _runner_up_start(rounds, accepted, problem: Problem, floor: float, tie: floa
     0.93 and 1.33 with lower fit-step objectives (docs/diagnosis.md section 4, session
     21). Only after the armature: one fit more, where the stand-in is known to occur.
     """
-    if len(accepted) < 2 or accepted[-1][0] != "feedback" or not rounds:
+    if len(accepted) < 2 or accepted[-1][0] != "feedback":
         return None
-    taken = accepted[-1][0]
-    runner = _proposal([(e, f) for e, f in rounds[-1] if e != taken], problem, floor, tie)
+    others = [(e, f) for e, f in rounds[-1] if e != "feedback"]
+    runner = _proposal(others, problem, floor, tie)
     if runner is None:
         return None
     return runner[0], dict(runner[1].model.params)
@@ -501,7 +501,11 @@ def forward_select(
                 if e == owner
             }
             last = len(accepted) == settings.max_effects - 1
-            for eff in todo:
+            starts = [(eff, prev) for eff in todo]
+            second = _runner_up_start(rounds, accepted, problem, floor, settings.tie)
+            if second is not None:  # the runner-up's joint fit, also from its own point
+                starts.append((second[0], {**prev, **second[1], **fixed}))
+            for eff, start in starts:
                 for extra in _discrete_splits(eff, fixed, round1):
                     name = model_name([*effects, eff])
                     owners.append(eff)
@@ -509,17 +513,8 @@ def forward_select(
                     # but not with an armature (module docstring)
                     cont = bool(rounds) and "feedback" not in Model.parse(name).effects
                     jobs.append(
-                        (problem, name, prev, {**fixed, **extra}, None, fit_settings, seed,
+                        (problem, name, start, {**fixed, **extra}, None, fit_settings, seed,
                          cont)
-                    )  # fmt: skip
-            second = _runner_up_start(rounds, accepted, problem, floor, settings.tie)
-            if second is not None:  # the runner-up's joint fit, also from its own point
-                eff, start_of = second
-                for extra in _discrete_splits(eff, fixed, round1):
-                    owners.append(eff)
-                    jobs.append(
-                        (problem, model_name([*effects, eff]), {**prev, **start_of, **fixed},
-                         {**fixed, **extra}, None, fit_settings, seed, False)
                     )  # fmt: skip
             fits = fit_many(jobs, pool, progress)
             tried = [(eff, _best_of(eff, owners, fits)) for eff in todo]

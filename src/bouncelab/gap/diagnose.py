@@ -325,6 +325,14 @@ def diagnose_flights(
         steps.append(entry)
         prev_g = g
 
+    pair = sel["pair_check"] or {}
+    if "replaced_by" in pair:
+        a, b = pair["replaced_by"]
+        warnings.append(
+            f"the shaker's armature alone ({pair['armature']:.3g} noise floors held out) "
+            f"was replaced by {a} + {b} ({pair['pairs'][f'{a}+{b}']:.3g})"
+        )
+
     final: FitResult = sel["final"]
     final_gap = heldout_gap(final, problem)
     cmp_base = _features(problem, base_fit.model)
@@ -371,6 +379,8 @@ def diagnose_flights(
         "stop": sel["stop"],
         # the takeoff-phase reasons that kept the selection going within the floor
         "went_on": sel["went_on"],
+        # an armature taken alone against every pair of the other effects, or null
+        "pair_check": sel["pair_check"],
         "rounds": [
             [
                 {

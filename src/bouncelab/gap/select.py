@@ -398,6 +398,74 @@ def _runner_up_start(rounds, accepted, problem: Problem, floor: float, tie: floa
     return runner[0], dict(runner[1].model.params)
 
 
+def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
+    """``(accepted, info)``: the selection with an armature taken alone replaced by the
+    pair of other effects that explains the run better, or ``(accepted, None)`` when the
+    selection is not the armature alone.
+
+    Every pair of round 1's other candidates is fitted jointly from their round-1 values
+    (round 1's ``k``). The pair with the least held-out gap replaces the armature when it
+    beats it by ``margin`` floors and neither of its effects is inert; its effects are
+    ordered by their round-1 gaps, the first one's step being its round-1 fit. ``job``:
+    ``(problem, baseline fit, fixed, fit settings, seed)``. ``info``: ``armature`` and
+    ``pairs`` (held-out gaps in floors), ``replaced_by`` (the pair taken, if any) and
+    ``fits`` (the pairs' fits: their cost counts in the refinement's budget).
+
+    Why: forward selection adds one effect at a time, and the armature is the one effect
+    whose four parameters can stand in for two others at once. On an independent
+    recording with friction (mu 0.2) and a Gamma miscalibration (s 0.93) a heavily
+    damped loaded armature (zeta 0.56) came out at 1.13 floors alone, within the floor,
+    where friction alone reached 4.9 and the miscalibration 3.8; the pair reaches 0.12
+    (docs/diagnosis.md section 4, session 23). Only for an armature taken alone: a round
+    of fits without the armature costs little beside one with it.
+    """
+    if [e for e, _f in accepted] != ["feedback"] or not rounds:
+        return accepted, None
+    problem, base_fit, fixed, fit_settings, seed = job
+    singles = {e: f for e, f in rounds[0] if e != "feedback"}
+    round1 = {  # the discrete choices round 1 made with each effect alone
+        name: f.model.params[name]
+        for e, f in singles.items()
+        for name, (owner, _values) in SPLITS.items()
+        if e == owner and name in f.model.params
+    }
+    gap1 = {e: heldout_gap(f, problem) for e, f in singles.items()}
+    order = sorted(singles, key=lambda e: (gap1[e], e))
+    pairs = [(a, b) for i, a in enumerate(order) for b in order[i + 1 :]]
+    jobs = []
+    for a, b in pairs:
+        start = {**base_fit.model.params, **singles[a].model.params, **singles[b].model.params}
+        extra = {}
+        for e in (a, b):
+            (split,) = _discrete_splits(e, fixed, round1)
+            extra.update(split)
+        name = model_name([*base_fit.model.effects, a, b])
+        # a joint fit without the armature: low-Gamma steps first, as in later rounds
+        jobs.append(
+            (problem, name, {**start, **fixed}, {**fixed, **extra}, None, fit_settings, seed, True)
+        )
+    fits = fit_many(jobs, pool, progress) if jobs else []
+    g_arm = heldout_gap(accepted[0][1], problem)
+    gaps = [heldout_gap(f, problem) for f in fits]
+    info = {
+        "armature": g_arm / floor,
+        "pairs": {f"{a}+{b}": g / floor for (a, b), g in zip(pairs, gaps, strict=True)},
+        "fits": fits,
+    }
+    live = [
+        (g, (a, b), f)
+        for (a, b), f, g in zip(pairs, fits, gaps, strict=True)
+        if not (is_inert(a, f.model.params) or is_inert(b, f.model.params))
+    ]
+    if not live:
+        return accepted, info
+    g_pair, (a, b), fit = min(live, key=lambda r: (r[0], r[1]))
+    if g_arm - g_pair < settings.margin * floor:
+        return accepted, info
+    info["replaced_by"] = [a, b]
+    return [(a, singles[a]), (b, fit)], info
+
+
 def _without(problem, fit: FitResult, effect: str, fixed, fit_settings, seed, pool) -> FitResult:
     """``fit``'s model without the inert ``effect`` (:func:`is_inert`), its other
     parameters refined locally from ``fit``'s values (no global search)."""
@@ -554,9 +622,16 @@ def forward_select(
             accepted.append((eff, best))
             effects.append(eff)
             current = best
+        accepted, pair_check = _pair_for_armature(
+            rounds, accepted, (problem, base_fit, fixed, fit_settings, seed),
+            pool, progress, floor, settings,
+        )  # fmt: skip
+        pair_fits = pair_check.pop("fits") if pair_check is not None else []
+        if pair_check is not None and "replaced_by" in pair_check:
+            current = accepted[-1][1]
         final_problem, refined = problem, None
         if accepted:
-            done = [base_fit] + [f for tried in rounds for _e, f in tried]
+            done = [base_fit] + [f for tried in rounds for _e, f in tried] + pair_fits
             refined = refine_settings(
                 problem, current.model.effects, fit_settings, fixed,
                 spent_cycles(done, problem),
@@ -589,4 +664,5 @@ def forward_select(
         "final_problem": final_problem,
         "refined": refined,
         "went_on": went_on,
+        "pair_check": pair_check,
     }

@@ -80,6 +80,16 @@ CASES = {
     "gamma_scale_40hz_short_steps": {"s": 1.1, "step_s": 1.0, "f": 40.0, "seed": 57},
     "restitution_chaotic_g5-8": {"g0": 5.0, "g1": 8.0, "dg": 0.1, "e": 0.4, "seed": 61},
     "friction_8khz": {"fs": 8000.0, "mu": 0.25, "seed": 62},
+    # pairs of library effects other than the seed's, and more of the protocol's range
+    # (session 23): a Gamma miscalibration beside friction or restitution, a harmonic
+    # beside restitution, the armature beside friction alone, a high and a low e, 60 Hz
+    "friction_gamma_scale": {"g1": 5.0, "mu": 0.2, "s": 0.93, "seed": 101},
+    "restitution_harmonic": {"g1": 5.0, "e": 0.4, "a": 0.06, "k": 2.0, "psi": 1.5, "seed": 102},
+    "friction_feedback": {"mu": 0.2, "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.05, "seed": 103},
+    "restitution_gamma_scale": {"e": 0.4, "s": 1.07, "seed": 104},
+    "friction_restitution_high_e": {"mu": 0.35, "e": 0.6, "g1": 5.0, "seed": 105},
+    "null_60hz": {"f": 60.0, "seed": 107},
+    "restitution_low_e": {"e": 0.15, "seed": 108},
     # outside the library: each should come out unexplained
     "vdep_restitution": {
         "e": 0.4, "e_slope": 0.4, "g0": 1.0, "g1": 3.5, "dg": 0.1, "step_s": 1.33, "seed": 71,
@@ -89,6 +99,7 @@ CASES = {
     },
     "vibration": {"vib_rms": 2e-5, "seed": 73},
     "vibration_27hz": {"f": 27.0, "vib_rms": 3e-5, "g0": 0.5, "g1": 4.5, "dg": 0.1, "seed": 74},
+    "friction_delay": {"mu": 0.2, "delay_s": 0.001, "seed": 106},
 }  # fmt: skip
 
 

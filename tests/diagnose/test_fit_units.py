@@ -746,3 +746,82 @@ def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monk
     assert starts[0]["e"] == 0.3 and "mu" not in starts[0]  # the current model
     assert starts[1] == {**armature, "mu": 0.2, "e": 0.5}  # the runner-up's, this armature
     assert [n for n, _b in calls].count("friction+restitution") == 1
+
+
+@pytest.mark.parametrize(
+    "pair_gap, taken", [(0.2, ["gamma_scale", "friction"]), (1.0, ["feedback"])]
+)
+def test_an_armature_taken_alone_is_checked_against_every_pair(monkeypatch, pair_gap, taken):
+    """Reference: a scripted selection (floor 1, explained_ratio 2, margin 0.25). Round 1
+    takes the armature alone (10 -> 1.1, within the floor); friction alone reaches 5 and
+    a Gamma miscalibration 4 (an independent recording with both: 4.9, 3.8 and the
+    armature 1.13). The pair, fitted from the two round-1 values, replaces the armature
+    when it beats it by the margin (0.2: the pair, ordered by round-1 gaps, the first
+    step its round-1 fit) and not otherwise (1.0: 0.1 floors better only)."""
+    from bouncelab.gap import select
+
+    calls = []
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, base, _fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append((name, dict(base)))
+            gap, params = {
+                "ideal": (10.0, {}),
+                "friction": (5.0, {"mu": 0.4}),
+                "gamma_scale": (4.0, {"s": 0.9}),
+                "feedback": (
+                    1.1,
+                    {"ride_load": 1.0, "mass_ratio": 0.1, "f_ratio": 0.4, "zeta": 0.5},
+                ),
+                "friction+gamma_scale": (pair_gap, {"mu": 0.2, "s": 0.93}),
+            }[name]
+            out.append(scripted_fit(name, params, gap))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "gamma_scale", "feedback"]
+    )
+    assert [e for e, _f in sel["accepted"]] == taken
+    assert calls.count(("friction+gamma_scale", {"mu": 0.4, "s": 0.9})) == 1
+    assert sel["pair_check"]["pairs"] == {"gamma_scale+friction": pair_gap}
+    assert ("replaced_by" in sel["pair_check"]) == (taken != ["feedback"])
+    assert sel["final"].objective == min(pair_gap, 1.1) if taken != ["feedback"] else 1.1
+    if taken != ["feedback"]:
+        assert sel["accepted"][0][1].model.name == "gamma_scale"  # its round-1 fit
+
+
+def test_no_pair_check_when_the_armature_is_not_alone(monkeypatch):
+    """Reference: a scripted selection. Round 1 takes restitution (10 -> 5), round 2 the
+    armature beside it (-> 1.5, within the floor): no pairs are fitted."""
+    from bouncelab.gap import select
+
+    calls = []
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append(name)
+            gap, params = {
+                "ideal": (10.0, {}),
+                "restitution": (5.0, {"e": 0.3}),
+                "feedback": (6.0, {"mass_ratio": 0.1, "f_ratio": 0.4, "zeta": 0.5}),
+                "restitution+feedback": (
+                    1.5,
+                    {"e": 0.4, "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1},
+                ),
+                "friction+restitution": (4.0, {"mu": 0.1, "e": 0.3}),
+            }.get(name, (9.0, {}))
+            if "feedback" in name:
+                params = {**params, "ride_load": fixed.get("ride_load", 1.0)}
+            out.append(scripted_fit(name, params, gap))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "restitution", "feedback"]
+    )
+    assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
+    assert sel["pair_check"] is None
+    assert calls.count("friction+restitution") == 1  # round 2's, no pair fit

@@ -22,8 +22,9 @@ that refit's values (refined locally without the inert effect) when they do bett
 and the next addition is judged against it; an effect the final refinement takes to its
 null value is dropped the same way. A selection that ends with the armature alone is
 checked against every pair of the other effects (:func:`_pair_for_armature`). The
-selected model's parameters are then refined (:func:`bouncelab.gap.fit.refine_settings`). All gaps here are
-weighted means over held-out steps in radians (:meth:`bouncelab.gap.fit.Problem.mean`);
+selected model's parameters are then refined (:func:`bouncelab.gap.fit.refine_settings`).
+All gaps here are weighted means over held-out steps in radians
+(:meth:`bouncelab.gap.fit.Problem.mean`);
 the noise floor is the same mean of the data's own floor.
 
 Joint fits of later rounds on runs that reach far above the first period doubling search

@@ -90,6 +90,22 @@ CASES = {
     "friction_restitution_high_e": {"mu": 0.35, "e": 0.6, "g1": 5.0, "seed": 105},
     "null_60hz": {"f": 60.0, "seed": 107},
     "restitution_low_e": {"e": 0.15, "seed": 108},
+    # and more: a harmonic or the armature beside a Gamma miscalibration, the armature
+    # beside restitution, three effects with a harmonic or a miscalibration, 40 and 25 Hz
+    "harmonic_gamma_scale": {"g1": 5.0, "a": 0.06, "k": 3.0, "psi": 1.0, "s": 1.06, "seed": 111},
+    "restitution_feedback": {
+        "e": 0.4, "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.05, "seed": 112,
+    },
+    "feedback_gamma_scale": {
+        "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.05, "s": 0.94, "seed": 113,
+    },
+    "friction_restitution_harmonic": {
+        "g1": 5.0, "mu": 0.2, "e": 0.4, "a": 0.05, "k": 2.0, "psi": 2.0, "seed": 114,
+    },
+    "friction_restitution_gamma_scale": {"mu": 0.2, "e": 0.4, "s": 0.95, "seed": 115},
+    "friction_harmonic": {"g1": 5.0, "mu": 0.25, "a": 0.06, "k": 2.0, "psi": 0.5, "seed": 116},
+    "friction_40hz": {"f": 40.0, "mu": 0.15, "g1": 5.0, "seed": 117},
+    "restitution_25hz_g0-6": {"f": 25.0, "e": 0.5, "g1": 6.0, "dg": 0.1, "seed": 118},
     # outside the library: each should come out unexplained
     "vdep_restitution": {
         "e": 0.4, "e_slope": 0.4, "g0": 1.0, "g1": 3.5, "dg": 0.1, "step_s": 1.33, "seed": 71,

@@ -400,18 +400,29 @@ def _runner_up_start(rounds, accepted, problem: Problem, floor: float, tie: floa
     return runner[0], dict(runner[1].model.params)
 
 
+def _round1_choices(rounds) -> dict:
+    """The discrete choices (``k``, ``ride_load``: :data:`SPLITS`) of round 1, where each
+    effect was fitted alone; empty before round 1."""
+    return {
+        name: f.model.params[name]
+        for e, f in (rounds[0] if rounds else [])
+        for name, (owner, _values) in SPLITS.items()
+        if e == owner
+    }
+
+
 def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
-    """``(accepted, info)``: the selection with an armature taken alone replaced by the
-    pair of other effects that explains the run better, or ``(accepted, None)`` when the
-    selection is not the armature alone.
+    """``(accepted, info, fits)``: the selection with an armature taken alone replaced by
+    the pair of other effects that explains the run better, or ``(accepted, None, [])``
+    when the selection is not the armature alone.
 
     Every pair of round 1's other candidates is fitted jointly from their round-1 values
     (round 1's ``k``). The pair with the least held-out gap replaces the armature when it
     beats it by ``margin`` floors and neither of its effects is inert; its effects are
     ordered by their round-1 gaps, the first one's step being its round-1 fit. ``job``:
     ``(problem, baseline fit, fixed, fit settings, seed)``. ``info``: ``armature`` and
-    ``pairs`` (held-out gaps in floors), ``replaced_by`` (the pair taken, if any) and
-    ``fits`` (the pairs' fits: their cost counts in the refinement's budget).
+    ``pairs`` (held-out gaps in floors) and ``replaced_by`` (the pair taken, if any);
+    ``fits``: the pairs' fits (their cost counts in the refinement's budget).
 
     Why: forward selection adds one effect at a time, and the armature is the one effect
     whose four parameters can stand in for two others at once. On an independent
@@ -422,15 +433,10 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
     of fits without the armature costs little beside one with it.
     """
     if [e for e, _f in accepted] != ["feedback"] or not rounds:
-        return accepted, None
+        return accepted, None, []
     problem, base_fit, fixed, fit_settings, seed = job
     singles = {e: f for e, f in rounds[0] if e != "feedback"}
-    round1 = {  # the discrete choices round 1 made with each effect alone
-        name: f.model.params[name]
-        for e, f in singles.items()
-        for name, (owner, _values) in SPLITS.items()
-        if e == owner and name in f.model.params
-    }
+    round1 = _round1_choices(rounds)
     gap1 = {e: heldout_gap(f, problem) for e, f in singles.items()}
     order = sorted(singles, key=lambda e: (gap1[e], e))
     pairs = [(a, b) for i, a in enumerate(order) for b in order[i + 1 :]]
@@ -452,7 +458,6 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
     info = {
         "armature": g_arm / floor,
         "pairs": {f"{a}+{b}": g / floor for (a, b), g in zip(pairs, gaps, strict=True)},
-        "fits": fits,
     }
     live = [
         (g, (a, b), f)
@@ -460,12 +465,12 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
         if not (is_inert(a, f.model.params) or is_inert(b, f.model.params))
     ]
     if not live:
-        return accepted, info
+        return accepted, info, fits
     g_pair, (a, b), fit = min(live, key=lambda r: (r[0], r[1]))
     if g_arm - g_pair < settings.margin * floor:
-        return accepted, info
+        return accepted, info, fits
     info["replaced_by"] = [a, b]
-    return [(a, singles[a]), (b, fit)], info
+    return [(a, singles[a]), (b, fit)], info, fits
 
 
 def _without(problem, fit: FitResult, effect: str, fixed, fit_settings, seed, pool) -> FitResult:
@@ -564,12 +569,7 @@ def forward_select(
                 break
             prev = {**current.model.params, **fixed}
             owners, jobs = [], []
-            round1 = {  # the discrete choices of round 1, where each effect was fitted alone
-                name: f.model.params[name]
-                for e, f in (rounds[0] if rounds else [])
-                for name, (owner, _values) in SPLITS.items()
-                if e == owner
-            }
+            round1 = _round1_choices(rounds)
             last = len(accepted) == settings.max_effects - 1
             starts = [(eff, prev) for eff in todo]
             second = _runner_up_start(rounds, accepted, problem, floor, settings.tie)
@@ -624,11 +624,10 @@ def forward_select(
             accepted.append((eff, best))
             effects.append(eff)
             current = best
-        accepted, pair_check = _pair_for_armature(
+        accepted, pair_check, pair_fits = _pair_for_armature(
             rounds, accepted, (problem, base_fit, fixed, fit_settings, seed),
             pool, progress, floor, settings,
         )  # fmt: skip
-        pair_fits = pair_check.pop("fits") if pair_check is not None else []
         if pair_check is not None and "replaced_by" in pair_check:
             current = accepted[-1][1]
         final_problem, refined = problem, None

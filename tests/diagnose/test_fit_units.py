@@ -707,7 +707,7 @@ def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monk
     armature left it: ends at 1.8) and from the runner-up's values with the current
     armature (ends at 0.9). The least fit-step objective is kept, and friction is
     accepted (blind ``seed_like_c``, diagnosis seed 3: 1.77 against 0.93 floors). No
-    second start after a round that took another effect: round 2 has one per effect."""
+    second start before the third round: round 2 has one per effect."""
     from bouncelab.gap import select
 
     calls = []
@@ -746,6 +746,61 @@ def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monk
     assert starts[0]["e"] == 0.3 and "mu" not in starts[0]  # the current model
     assert starts[1] == {**armature, "mu": 0.2, "e": 0.5}  # the runner-up's, this armature
     assert [n for n, _b in calls].count("friction+restitution") == 1
+
+
+def test_after_a_harmonic_the_runner_up_is_also_fitted_from_its_own_point(monkeypatch):
+    """Reference: a scripted selection (floor 1, explained_ratio 0.5). Round 1 takes
+    restitution (10 -> 5); round 2 a harmonic beside it (-> 2.6). The armature (2.7) and
+    friction (friction + restitution at mu 0.2, e 0.4: 3.9) come next; the armature is
+    never the second start (its own re-searches are the last round's), so friction is.
+    Round 3 fits friction + restitution + harmonic twice: from the current model (mu 0,
+    where the harmonic left e: 2.65, no gain) and from the runner-up's values with the
+    current harmonic (2.2): friction is accepted (independent
+    ``friction_restitution_harmonic``, session 24: 2.65 against 2.20 floors)."""
+    from bouncelab.gap import select
+
+    calls = []
+    harmonic = {"a": 0.06, "psi": 2.5}  # k: round 1's choice
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, base, fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append((name, dict(base)))
+            if name == "friction+restitution+harmonic":
+                gap = 2.2 if base.get("mu") == 0.2 else 2.65
+                out.append(scripted_fit(name, {**base, "mu": base.get("mu", 0.0)}, gap))
+                continue
+            gap, params = {
+                "ideal": (10.0, {}),
+                "restitution": (5.0, {"e": 0.35}),
+                "restitution+harmonic": (2.6, {"e": 0.35, **harmonic}),
+                "friction+restitution": (3.9, {"mu": 0.2, "e": 0.4}),
+                "restitution+feedback": (2.7, {"e": 0.5}),
+            }.get(name, (9.0, {}))
+            if "harmonic" in name:
+                params = {**params, "k": fixed.get("k", 2.0)}
+            if "feedback" in name:
+                armature = {"mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.1}
+                params = {**armature, **params, "ride_load": fixed.get("ride_load", 1.0)}
+            out.append(scripted_fit(name, params, gap))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "restitution", "harmonic", "feedback"],
+        settings=select.SelectSettings(explained_ratio=0.5, tie=0.05),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution", "harmonic", "friction"]
+    assert sel["final"].objective == 2.2
+    starts = [b for n, b in calls if n == "friction+restitution+harmonic"]
+    assert len(starts) == 2
+    assert starts[0]["e"] == 0.35 and "mu" not in starts[0]  # the current model
+    second = {n: v for n, v in starts[1].items() if n != "k"}
+    assert second == {**harmonic, "mu": 0.2, "e": 0.4}  # the runner-up's, this harmonic
+    # the armature, runner-up on the gap, is fitted from the current model only
+    armature_starts = [b for n, b in calls if n == "restitution+harmonic+feedback"]
+    assert armature_starts and all(b["e"] == 0.35 for b in armature_starts)
 
 
 @pytest.mark.parametrize(

@@ -377,23 +377,30 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
 
 def _runner_up_start(rounds, accepted, problem: Problem, floor: float, tie: float):
     """``(effect, parameters)``: a second start for this round's joint fit of the last
-    round's runner-up, when that round took the armature beside other effects; else None.
+    round's runner-up, from the third round on; else None.
 
-    The runner-up is the last round's proposal without the effect it took
-    (:func:`_proposal`), and the start is its fit's values (the effects before the
-    armature and the runner-up itself) with the armature's from the current model; the
-    fit of the two starts with the least fit-step objective is kept (:func:`_best_of`).
-    Why: beside restitution, the armature's five parameters can stand in for friction
-    (1.25-1.97 floors held out where friction reaches 2.6-3.4), and this round's
-    friction fit then starts from mu 0 with e where the armature left it. On the
-    blind ``seed_like_c`` and ``seed_like_b`` with diagnosis seed 3 that start ended at
-    1.77 and 2.69 floors (mu 0.025), the start from round 2's friction + restitution at
-    0.93 and 1.33 with lower fit-step objectives (docs/diagnosis.md section 4, session
-    21). Only after the armature: one fit more, where the stand-in is known to occur.
+    The runner-up is the last round's proposal without the effect it took and without
+    the armature (:func:`_proposal`), and the start is its fit's values (the effects
+    before the last one taken and the runner-up itself) with the last effect's values
+    from the current model; the fit of the two starts with the least fit-step objective
+    is kept (:func:`_best_of`). Why: a flexible effect taken beside another can stand in
+    for the runner-up, whose joint fit then starts from its null value with the other
+    effects where the stand-in left them. Beside restitution the armature's five
+    parameters stand in for friction (1.25-1.97 floors held out where friction reaches
+    2.6-3.4): on the blind ``seed_like_c`` and ``seed_like_b`` with diagnosis seed 3
+    the start from the current model ended at 1.77 and 2.69 floors (mu 0.025), the start
+    from round 2's friction + restitution at 0.93 and 1.33 with lower fit-step
+    objectives (docs/diagnosis.md section 4, sessions 21-22). A harmonic does the same:
+    on the independent ``friction_restitution_harmonic`` (mu 0.2, e 0.4, a 0.05) round
+    3's friction from restitution + harmonic reached 2.65 floors against 2.62 without
+    it, from round 2's friction + restitution 2.20, and friction is taken (session 24).
+    Never the armature as the runner-up: the last round searches it again with other
+    seeds (:func:`_armature_seeds`), and a second start of it would cost as much as all
+    the other additions of the round together.
     """
-    if len(accepted) < 2 or accepted[-1][0] != "feedback":
+    if len(accepted) < 2:
         return None
-    others = [(e, f) for e, f in rounds[-1] if e != "feedback"]
+    others = [(e, f) for e, f in rounds[-1] if e not in (accepted[-1][0], "feedback")]
     runner = _proposal(others, problem, floor, tie)
     if runner is None:
         return None

@@ -699,6 +699,35 @@ def test_the_selection_goes_on_within_the_floor_while_the_phases_show_the_model_
     assert checked == ["restitution+feedback"]
 
 
+#: The armature's parameters in the scripted runner-up selections below.
+_ARMATURE = {"mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.1}
+
+
+def runner_up_fit_many(calls: list, table: dict, joint: str, gap_from):
+    """A ``fit_many`` stand-in for the runner-up selections below. Each job's fit is
+    ``table[name]`` (``(gap, params)``; ``gap`` may be a function of the params; 9 floors
+    when absent), with the job's discrete choices (``k``, ``ride_load``) and the
+    armature's :data:`_ARMATURE` values; the ``joint`` fit scores ``gap_from(start)`` at
+    its start with mu (0 when absent). Every job's ``(name, start)`` goes to ``calls``."""
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, base, fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append((name, dict(base)))
+            if name == joint:
+                out.append(scripted_fit(name, {**base, "mu": base.get("mu", 0.0)}, gap_from(base)))
+                continue
+            gap, params = table.get(name, (9.0, {}))
+            if "harmonic" in name:
+                params = {**params, "k": fixed.get("k", 2.0)}
+            if "feedback" in name:
+                params = {**_ARMATURE, **params, "ride_load": fixed.get("ride_load", 1.0)}
+            out.append(scripted_fit(name, params, gap(params) if callable(gap) else gap))
+        return out
+
+    return fake_fit_many
+
+
 def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monkeypatch):
     """Reference: a scripted selection (floor 1, explained_ratio 0.5). Round 1 takes
     restitution (10 -> 5); round 2 the armature beside it (-> 1.9), friction the
@@ -711,29 +740,17 @@ def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monk
     from bouncelab.gap import select
 
     calls = []
-    armature = {"ride_load": 1.0, "mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.1}
-
-    def fake_fit_many(jobs, pool=None, progress=None):
-        out = []
-        for _problem, name, base, fixed, _search, _settings, _seed, *_more in jobs:
-            calls.append((name, dict(base)))
-            if name == "friction+restitution+feedback":
-                gap = 0.9 if base.get("mu") == 0.2 else 1.8
-                out.append(scripted_fit(name, {**base, "mu": base.get("mu", 0.0)}, gap))
-                continue
-            gap, params = {
-                "ideal": (10.0, {}),
-                "restitution": (5.0, {"e": 0.3}),
-                "restitution+feedback": (1.9, {"e": 0.3, **armature}),
-                "friction+restitution": (2.6, {"mu": 0.2, "e": 0.5}),
-            }.get(name, (9.0, {}))
-            if "feedback" in name:
-                params = {**armature, **params, "ride_load": fixed.get("ride_load", 1.0)}
-                gap -= name == "feedback" and params["ride_load"] == 1.0  # loaded, alone
-            out.append(scripted_fit(name, params, gap))
-        return out
-
-    script_selection(monkeypatch, fake_fit_many)
+    armature = {**_ARMATURE, "ride_load": 1.0}
+    table = {
+        "ideal": (10.0, {}),
+        "restitution": (5.0, {"e": 0.3}),
+        "feedback": (lambda p: 8.0 if p["ride_load"] == 1.0 else 9.0, {}),  # loaded, alone
+        "restitution+feedback": (1.9, {"e": 0.3, **armature}),
+        "friction+restitution": (2.6, {"mu": 0.2, "e": 0.5}),
+    }
+    joint = "friction+restitution+feedback"
+    fake = runner_up_fit_many(calls, table, joint, lambda b: 0.9 if b.get("mu") == 0.2 else 1.8)
+    script_selection(monkeypatch, fake)
     monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
     sel = select.forward_select(
         _OneStepProblem(), 1.0, candidates=["friction", "restitution", "feedback"],
@@ -741,7 +758,7 @@ def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monk
     )  # fmt: skip
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback", "friction"]
     assert sel["final"].objective == 0.9
-    starts = [b for n, b in calls if n == "friction+restitution+feedback"]
+    starts = [b for n, b in calls if n == joint]
     assert len(starts) == 2
     assert starts[0]["e"] == 0.3 and "mu" not in starts[0]  # the current model
     assert starts[1] == {**armature, "mu": 0.2, "e": 0.5}  # the runner-up's, this armature
@@ -761,31 +778,16 @@ def test_after_a_harmonic_the_runner_up_is_also_fitted_from_its_own_point(monkey
 
     calls = []
     harmonic = {"a": 0.06, "psi": 2.5}  # k: round 1's choice
-
-    def fake_fit_many(jobs, pool=None, progress=None):
-        out = []
-        for _problem, name, base, fixed, _search, _settings, _seed, *_more in jobs:
-            calls.append((name, dict(base)))
-            if name == "friction+restitution+harmonic":
-                gap = 2.2 if base.get("mu") == 0.2 else 2.65
-                out.append(scripted_fit(name, {**base, "mu": base.get("mu", 0.0)}, gap))
-                continue
-            gap, params = {
-                "ideal": (10.0, {}),
-                "restitution": (5.0, {"e": 0.35}),
-                "restitution+harmonic": (2.6, {"e": 0.35, **harmonic}),
-                "friction+restitution": (3.9, {"mu": 0.2, "e": 0.4}),
-                "restitution+feedback": (2.7, {"e": 0.5}),
-            }.get(name, (9.0, {}))
-            if "harmonic" in name:
-                params = {**params, "k": fixed.get("k", 2.0)}
-            if "feedback" in name:
-                armature = {"mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.1}
-                params = {**armature, **params, "ride_load": fixed.get("ride_load", 1.0)}
-            out.append(scripted_fit(name, params, gap))
-        return out
-
-    script_selection(monkeypatch, fake_fit_many)
+    table = {
+        "ideal": (10.0, {}),
+        "restitution": (5.0, {"e": 0.35}),
+        "restitution+harmonic": (2.6, {"e": 0.35, **harmonic}),
+        "friction+restitution": (3.9, {"mu": 0.2, "e": 0.4}),
+        "restitution+feedback": (2.7, {"e": 0.5}),
+    }
+    joint = "friction+restitution+harmonic"
+    fake = runner_up_fit_many(calls, table, joint, lambda b: 2.2 if b.get("mu") == 0.2 else 2.65)
+    script_selection(monkeypatch, fake)
     monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
     sel = select.forward_select(
         _OneStepProblem(), 1.0, candidates=["friction", "restitution", "harmonic", "feedback"],
@@ -793,7 +795,7 @@ def test_after_a_harmonic_the_runner_up_is_also_fitted_from_its_own_point(monkey
     )  # fmt: skip
     assert [e for e, _f in sel["accepted"]] == ["restitution", "harmonic", "friction"]
     assert sel["final"].objective == 2.2
-    starts = [b for n, b in calls if n == "friction+restitution+harmonic"]
+    starts = [b for n, b in calls if n == joint]
     assert len(starts) == 2
     assert starts[0]["e"] == 0.35 and "mu" not in starts[0]  # the current model
     second = {n: v for n, v in starts[1].items() if n != "k"}

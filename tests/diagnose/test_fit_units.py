@@ -12,10 +12,13 @@ import pytest
 from bouncelab.errors import BouncelabError
 from bouncelab.gap.diagnose import read_calibration
 from bouncelab.gap.fit import (
+    BOX_ABSOLUTE,
+    BOX_MIN_SHARE,
     JOINT_K_CHOICES,
     K_CHOICES,
     FitResult,
     bootstrap_params,
+    box_around,
     decode,
     encode,
     fit_warnings,
@@ -59,6 +62,21 @@ def test_a_joint_fit_moves_a_fitted_harmonic_among_the_common_multiples_and_its_
     assert k.choices == (0.5, 2.0, 2.5, 3.0, 4.0) and (k.lower, k.upper) == (0.0, 4.0)
     assert joint_choices(free, {"k": 2.5})[0] == free[0]  # mu untouched
     assert set(JOINT_K_CHOICES) < set(K_CHOICES)
+
+
+def test_the_box_is_a_share_of_each_value_within_the_bounds():
+    """Reference: the rule of :func:`box_around`. mu 0.28 and share 0.35 -> 0.182-0.378;
+    psi and s take their absolute half-widths; e near 0 gets BOX_MIN_SHARE of its range
+    and stops at its bound; the harmonic's k keeps its choices."""
+    free = free_params(["friction", "restitution", "harmonic", "gamma_scale"])
+    params = {"mu": 0.28, "e": 0.001, "k": 2.0, "a": 0.05, "psi": 0.2, "s": 1.1}
+    box = {p.name: p for p in box_around(free, params, 0.35)}
+    assert box["mu"].lower == pytest.approx(0.182) and box["mu"].upper == pytest.approx(0.378)
+    assert box["a"].lower == pytest.approx(0.0325) and box["a"].upper == pytest.approx(0.0675)
+    assert box["psi"].lower == 0.0 and box["psi"].upper == pytest.approx(0.2 + BOX_ABSOLUTE["psi"])
+    assert box["s"].lower == pytest.approx(1.1 - BOX_ABSOLUTE["s"])
+    assert box["e"].lower == 0.0 and box["e"].upper == pytest.approx(0.001 + BOX_MIN_SHARE * 0.95)
+    assert box["k"] == next(p for p in free if p.name == "k")
 
 
 def test_encode_decode_round_trip():
@@ -229,6 +247,24 @@ def script_selection(monkeypatch, fake_fit_many, refined=None):
     monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
     monkeypatch.setattr(select, "refine_settings", lambda *a, **k: refined)
     monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    # no box refinement unless a test scripts one
+    monkeypatch.setattr(select, "box_refinement", lambda fit, *a, **k: (fit, {"kept": False}))
+
+
+def table_fit_many(gaps: dict, params: dict, names: list | None = None):
+    """A scripted ``fit_many`` that looks each job's model up in ``gaps`` (default 9
+    floors: an addition that gains nothing) and ``params`` (default none), recording the
+    model names in ``names`` when given."""
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        if names is not None:
+            names.extend(name for _problem, name, *_rest in jobs)
+        return [
+            scripted_fit(name, params.get(name, {}), gaps.get(name, 9.0))
+            for _problem, name, *_rest in jobs
+        ]
+
+    return fake_fit_many
 
 
 def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
@@ -832,7 +868,7 @@ def test_an_armature_taken_alone_is_checked_against_every_pair(monkeypatch, pair
                     {"ride_load": 1.0, "mass_ratio": 0.1, "f_ratio": 0.4, "zeta": 0.5},
                 ),
                 "friction+gamma_scale": (pair_gap, {"mu": 0.2, "s": 0.93}),
-            }[name]
+            }.get(name, (9.0, {}))  # round 2 (1.1 floors: strict_ratio) gains nothing
             out.append(scripted_fit(name, params, gap))
         return out
 
@@ -882,3 +918,132 @@ def test_no_pair_check_when_the_armature_is_not_alone(monkeypatch):
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
     assert sel["pair_check"] is None
     assert calls.count("friction+restitution") == 1  # round 2's, no pair fit
+
+
+@pytest.mark.parametrize(
+    "second, final_gap, boxed",
+    [("friction", 2.0, True), ("friction", 1.2, False), ("feedback", 2.0, False)],
+)
+def test_a_selected_model_above_the_box_ratio_is_searched_again_in_a_box(
+    monkeypatch, second, final_gap, boxed
+):
+    """Reference: a scripted selection. Restitution (10 -> 5) then ``second`` (-> the final
+    gap) are accepted. Above SelectSettings.box_ratio (1.5 floors) the box refinement is
+    called on the final fit and its fit replaces the last accepted one; at 1.2 it is not
+    called, nor on a model with the armature (refined on the expected gap instead)."""
+    from bouncelab.gap import select
+
+    joint = {
+        "friction": ("friction+restitution", {"mu": 0.3, "e": 0.4}),
+        "feedback": (
+            "restitution+feedback",
+            {"e": 0.4, "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1, "ride_load": 0.0},
+        ),
+    }[second]
+
+    gaps = {"ideal": 10.0, "restitution": 5.0, joint[0]: final_gap}
+    params = {"restitution": {"e": 0.3}, joint[0]: joint[1]}
+    script_selection(monkeypatch, table_fit_many(gaps, params))
+    calls = []
+
+    def fake_box(fit, *a, **k):
+        calls.append(fit.model.params)
+        return scripted_fit(fit.model.name, {**fit.model.params, "e": 0.41}, 0.9), {"kept": True}
+
+    monkeypatch.setattr(select, "box_refinement", fake_box)
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "restitution", second]
+    )
+    assert [e for e, _f in sel["accepted"]] == ["restitution", second]
+    assert calls == ([joint[1]] if boxed else [])
+    assert (sel["final"].model.params["e"] == 0.41) == boxed
+    assert sel["accepted"][-1][1] is sel["final"]
+    assert (sel["box"] is not None) == boxed
+
+
+@pytest.mark.parametrize("fresh_after, kept", [(0.5, True), (1.5, False)])
+def test_the_box_fit_is_kept_only_when_it_does_better_on_fresh_ensembles(
+    monkeypatch, fresh_after, kept
+):
+    """Reference: scripted fits. The box search of friction + harmonic (k 2 held as a
+    choice) returns mu 0.2; fresh ensembles score the fit 1.0 and the box's fit
+    ``fresh_after``: the box's fit is kept only below 1.0."""
+    from bouncelab.gap import select
+
+    fit = scripted_fit("friction+harmonic", {"mu": 0.28, "k": 2.0, "a": 0.05, "psi": 1.7}, 2.2)
+    jobs_seen = []
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        jobs_seen.extend(jobs)
+        (_problem, name, base, _fixed, _search, _settings, _seed) = jobs[0]
+        return [scripted_fit(name, {**base, "mu": 0.2}, 0.8)]
+
+    monkeypatch.setattr(select, "fit_many", fake_fit_many)
+    monkeypatch.setattr(select, "recheck_best", lambda f, *a, **k: f)
+    monkeypatch.setattr(
+        select,
+        "fresh_objectives",
+        lambda model, problem: np.full(4, fresh_after if model.params["mu"] == 0.2 else 1.0),
+    )
+    out, info = select.box_refinement(fit, None, {}, select.FitSettings(), 0)
+    (_problem, name, base, fixed, _search, settings, _seed) = jobs_seen[0]
+    assert name == "friction+harmonic" and base["mu"] == 0.28
+    assert fixed == {"k": 2.0} and settings.box_share == select.BOX_SHARE
+    assert info["kept"] == kept and info["fresh_before"] == 1.0
+    assert (out.model.params["mu"] == 0.2) == kept and (out is fit) != kept
+
+
+@pytest.mark.parametrize(
+    "first_gap, second_gap, taken, n_rounds",
+    [
+        # harmonic_gamma_scale (independent): 1.99 -> 0.60, 70 % less: taken
+        (1.99, 0.60, ["harmonic", "gamma_scale"], 2),
+        # g_restitution_high (blind): 1.76 -> 1.04, 41 % less: not taken
+        (1.76, 1.04, ["harmonic"], 2),
+        # within strict_ratio (1 floor): no second round
+        (0.9, 0.1, ["harmonic"], 1),
+    ],
+)
+def test_between_one_and_two_floors_an_addition_must_halve_the_gap(
+    monkeypatch, first_gap, second_gap, taken, n_rounds
+):
+    """Reference: a scripted selection (floor 1; explained_ratio 2, strict_ratio 1,
+    strict_shrink 0.5). Round 1 takes the harmonic (10 -> ``first_gap``); round 2's best
+    addition, the miscalibration, reaches ``second_gap``."""
+    from bouncelab.gap import select
+
+    gaps = {"ideal": 10.0, "harmonic": first_gap, "harmonic+gamma_scale": second_gap}
+    params = {
+        "harmonic": {"k": 3.0, "a": 0.08, "psi": 1.0},
+        "harmonic+gamma_scale": {"k": 3.0, "a": 0.08, "psi": 1.0, "s": 1.05},
+    }
+    script_selection(monkeypatch, table_fit_many(gaps, params))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "harmonic", "gamma_scale"]
+    )
+    assert [e for e, _f in sel["accepted"]] == taken
+    assert len(sel["rounds"]) == n_rounds
+    assert sel["stop"] == "within_floor"
+
+
+def test_a_strict_round_leaves_the_armature_out(monkeypatch):
+    """Reference: a scripted selection (floor 1). Round 1 takes restitution (10 -> 1.94,
+    g_restitution_high); round 2 is strict. The armature beside it would reach 0.5 (74 %
+    less) but is not fitted; friction (1.76) does not halve the gap: restitution alone."""
+    from bouncelab.gap import select
+
+    names = []
+    gaps = {"ideal": 10.0, "restitution": 1.94, "friction+restitution": 1.76,
+            "restitution+feedback": 0.5}  # fmt: skip
+    params = {
+        "restitution": {"e": 0.6},
+        "friction+restitution": {"mu": 0.05, "e": 0.6},
+        "feedback": {"mass_ratio": 0.1, "f_ratio": 0.5, "zeta": 0.5, "ride_load": 0.0},
+    }
+    script_selection(monkeypatch, table_fit_many(gaps, params, names))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "restitution", "feedback"]
+    )
+    assert [e for e, _f in sel["accepted"]] == ["restitution"]
+    assert [e for e, _f in sel["rounds"][1]] == ["friction"]
+    assert "restitution+feedback" not in names and "feedback" in names  # round 1 has it

@@ -27,6 +27,7 @@ from bouncelab.gap.fit import (
     MEMBER_SPREAD,
     MIN_FLOOR,
     NOISE_SIGMAS,
+    REFINE_DRAWS,
     RIDE_LOAD_CHOICES,
     FitResult,
     FitSettings,
@@ -402,7 +403,8 @@ def diagnose_flights(
         "phase_offset": {"baseline": phase_base, "final": phase_final},
         "design": {
             **_design(problem, fit_settings, select_settings, baseline, seed, fixed),
-            "refine": _refine_design(sel["refined"], sel["final_problem"]),
+            "refine": _refine_design(sel["refined"]),
+            "box": sel["box"],
         },
         "profile": {
             "step": [int(s) for s in problem.steps["step"]],
@@ -485,12 +487,12 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
     }
 
 
-def _refine_design(refined, final_problem: Problem) -> dict | None:
+def _refine_design(refined) -> dict | None:
     """How the selected model was refined (:func:`bouncelab.gap.fit.refine_settings`)."""
     if refined is None:
         return None
     return {
-        "n_draws": int(final_problem.n_draws),
+        "n_draws": REFINE_DRAWS,
         "max_population": refined.max_population,
         "maxiter": refined.maxiter,
     }

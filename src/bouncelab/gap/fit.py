@@ -188,6 +188,17 @@ CONTINUATION_MIN_STEPS = 8
 #: flight that takes off at Gamma <= 3 (under 2 pi).
 RESTRICTED_TAIL_CYCLES = 2
 
+#: Box of the box refinement (:func:`box_around`): ``BOX_SHARE`` of each parameter's
+#: value either side, absolute half-widths for the phase (rad) and the Gamma scale, and
+#: at least ``BOX_MIN_SHARE`` of the range either side (a value near zero).
+BOX_SHARE = 0.35
+BOX_ABSOLUTE = {"psi": 0.5, "s": 0.05}
+BOX_MIN_SHARE = 0.02
+
+#: Differential-evolution population (in all) and most generations of the box refinement.
+BOX_POPULATION = 24
+BOX_MAXITER = 30
+
 #: Fewer generations than this and the refinement is skipped: less than the selection's
 #: own joint search (10, 20 with feedback) is not expected to improve on it, and the
 #: 4 generations the budget gives the shipped 7650-cycle sweep made its diagnosis 147 s
@@ -223,6 +234,8 @@ class FitSettings:
         floors on the blind case ``feedback_a``), which 6 x 10 missed (3.8 floors, the
         truth 0.56) and 8 x 20 found (0.42 floors; ``mass_ratio``, ``f_ratio``, ``zeta``
         within 1 %, 1 %, 8 %).
+    box_share : when set, the global search explores a box around ``base`` instead of
+        the full bounds (:func:`box_around`); the refinement of the selected model.
     """
 
     n_members: int = 4
@@ -235,6 +248,7 @@ class FitSettings:
     heldout_every: int = 3
     feedback_extra_popsize: int = 2
     feedback_maxiter_factor: int = 2
+    box_share: float | None = None
 
 
 @dataclass(frozen=True)
@@ -740,6 +754,23 @@ def joint_choices(free: list[FreeParam], start: dict) -> list[FreeParam]:
     ]
 
 
+def box_around(free: list[FreeParam], params: dict, share: float) -> list[FreeParam]:
+    """``free`` with each continuous parameter's bounds narrowed to ``share`` of its
+    value in ``params`` either side (the absolute half-widths of :data:`BOX_ABSOLUTE` for
+    the phase and the Gamma scale, whose value is not their size), within its bounds and
+    at least :data:`BOX_MIN_SHARE` of its range either side; choices are left whole."""
+    out = []
+    for p in free:
+        if p.choices is not None:
+            out.append(p)
+            continue
+        v = float(params[p.name])
+        half = BOX_ABSOLUTE.get(p.name, share * abs(v))
+        half = max(half, BOX_MIN_SHARE * (p.upper - p.lower))
+        out.append(replace(p, lower=max(p.lower, v - half), upper=min(p.upper, v + half)))
+    return out
+
+
 def decode(free: list[FreeParam], x: np.ndarray) -> dict:
     """Parameter dict from an optimiser vector (choices indexed by the rounded value)."""
     out = {}
@@ -1007,6 +1038,8 @@ def fit_model(
     extra = {}
     if glob:
         sub = [free[i] for i in glob]
+        if settings.box_share is not None:
+            sub = box_around(sub, decode(free, x), settings.box_share)
 
         def lift(z):
             y = x.copy()

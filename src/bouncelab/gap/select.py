@@ -15,7 +15,9 @@ smallest held-out gap (the one with the fewest parameters among those tied with 
 
 and selection stops when no addition passes, when the current gap is already within
 ``explained_ratio`` noise floors (unless the takeoff phases show the model wrong,
-``unsettled`` of :func:`forward_select`), or after ``max_effects`` effects. An addition whose
+``unsettled`` of :func:`forward_select`; above ``strict_ratio`` one more round is tried
+first, without the armature, whose addition must halve the gap: :class:`SelectSettings`),
+or after ``max_effects`` effects. An addition whose
 strength sits at its null value (:data:`INERT`: friction with mu 0) adds nothing but a
 better refit of the effects already taken: it is not accepted; the current model takes
 that refit's values (refined locally without the inert effect) when they do better,
@@ -42,6 +44,10 @@ import sys
 from dataclasses import dataclass, replace
 
 from bouncelab.gap.fit import (
+    BOX_MAXITER,
+    BOX_POPULATION,
+    BOX_SHARE,
+    CHOICES,
     DATA_RESOLUTION,
     K_CHOICES,
     RECHECK_TOP,
@@ -125,6 +131,19 @@ class SelectSettings:
         ``explained_ratio`` (2), an independent seed-like recording's loaded armature
         (1.59 floors, f_ratio 0.34 for 0.6, takeoff phases 0.16 rad off) ended the
         selection unexplained while the impacts-only one reaches 0.60 floors.
+    strict_ratio, strict_shrink : a run within ``explained_ratio`` floors but above
+        ``strict_ratio`` still tries the next round, and takes an addition only when it
+        removes at least ``strict_shrink`` of the held-out gap (and ``margin``). Why: a
+        harmonic alone at 1.99 floors ended the independent ``harmonic_gamma_scale``,
+        whose miscalibration then takes it to 0.60 (70 % less); a plain stop at 1 floor
+        gave two blind single-effect runs a spurious second effect
+        (``g_restitution_high``: the armature, 1.76 -> 1.04, 41 % less). After the
+        first round such a strict round leaves the armature out: the most flexible
+        effect is the one that stands in (``g_restitution_high``'s armature: 1.94 ->
+        0.99 floors, 49 % less, on this code), and its searches would double the time
+        of a run (independent ``friction_restitution``: 35 -> 125 s with it).
+    box_ratio : a selected model without the armature still above this many floors is
+        refined again in a box around its fit (:func:`box_refinement`).
     tie : additions whose held-out gaps lie within this many noise floors of the least
         are tied, and the one with the fewest fitted parameters is taken (then the
         least gap). Why: a loaded armature on a soft suspension (``f_ratio`` near 0) is a
@@ -140,6 +159,9 @@ class SelectSettings:
     max_effects: int = 3
     tie: float = 0.25
     settled_ratio: float = 1.0
+    strict_ratio: float = 1.0
+    strict_shrink: float = 0.5
+    box_ratio: float = 1.5
 
 
 def pick_addition(scored: list[tuple[str, float, int]], tie: float) -> int:
@@ -480,6 +502,66 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
     return [(a, singles[a]), (b, fit)], info, fits
 
 
+def box_refinement(
+    fit: FitResult,
+    problem: Problem,
+    fixed: dict,
+    fit_settings: FitSettings,
+    seed: int,
+    pool=None,
+    progress: bool | None = None,
+) -> tuple[FitResult, dict]:
+    """The selected model searched again in a box around ``fit``'s values
+    (:func:`bouncelab.gap.fit.box_around`), its best evaluations rechecked on fresh
+    ensembles (:func:`bouncelab.gap.fit.recheck_best`); kept when it does better than
+    ``fit`` on the same fresh ensembles (:func:`bouncelab.gap.fit.fresh_objectives`).
+
+    Why: a joint model's truth can be a hole narrow in every parameter that the
+    full-range searches step over. On the independent ``friction_restitution_harmonic``
+    the selection ended at 2.2 floors with mu 0.28 (truth 0.2; the truth scores 0.82 on
+    fresh ensembles): one parameter 0.02 off the truth costs more than a floor, yet the
+    straight path from the fit to the truth descends all the way. A search of 24 over
+    30 generations in the box of :data:`bouncelab.gap.fit.BOX_SHARE` found it (mu, e,
+    a, psi within 1.3 %, 0.2 %, 0.4 %, 0.7 %; docs/diagnosis.md section 4, session 25).
+    Not for models with the armature (:func:`forward_select`): they are refined on the
+    expected gap, their misses are flat valleys rather than holes (blind ``seed_like_c``:
+    the box's fit scored 1.21 floors on fresh ensembles against the fit's 1.07), and an
+    armature evaluation costs more (``ool_vibration``'s box: about 60 s).
+
+    Returns
+    -------
+    ``(fit, info)``: the fit kept (``fit`` itself when the box did no better) and
+    ``info`` (``fresh_before``, ``fresh_after``: mean fresh objectives, rad; ``kept``:
+    whether the box's fit was kept; ``n_evals``).
+    """
+    choices = {k: v for k, v in fit.model.params.items() if k in CHOICES}
+    settings = replace(
+        fit_settings,
+        box_share=BOX_SHARE,
+        popsize=BOX_POPULATION,
+        max_population=BOX_POPULATION,
+        maxiter=BOX_MAXITER,
+        feedback_extra_popsize=0,
+        feedback_maxiter_factor=1,
+    )
+    (boxed,) = fit_many(
+        [(problem, fit.model.name, dict(fit.model.params), {**fixed, **choices}, None,
+          settings, seed)],
+        pool,
+        progress,
+    )  # fmt: skip
+    boxed = recheck_best(boxed, problem, RECHECK_TOP, pool)
+    before = float(fresh_objectives(fit.model, problem).mean())
+    after = float(fresh_objectives(boxed.model, problem).mean())
+    info = {
+        "fresh_before": before,
+        "fresh_after": after,
+        "kept": after < before,
+        "n_evals": boxed.n_evals,
+    }
+    return (boxed if after < before else fit), info
+
+
 def _without(problem, fit: FitResult, effect: str, fixed, fit_settings, seed, pool) -> FitResult:
     """``fit``'s model without the inert ``effect`` (:func:`is_inert`), its other
     parameters refined locally from ``fit``'s values (no global search)."""
@@ -567,12 +649,19 @@ def forward_select(
             within = g_cur <= settings.explained_ratio * floor
             if within and rounds and shows_more(current.model):
                 within = False
+            # above strict_ratio a run within the floor still tries the next round, but
+            # takes an addition only when it removes strict_shrink of the gap
+            strict = within and g_cur > settings.strict_ratio * floor
+            if strict and rounds:
+                within = False
             if within and rounds:
                 stop = "within_floor"
                 break
             todo = [e for e in candidates if e not in effects]
+            if strict and rounds:  # a strict round leaves the armature out (SelectSettings)
+                todo = [e for e in todo if e != "feedback"]
             if not todo:
-                stop = "no_candidates"
+                stop = "within_floor" if strict else "no_candidates"
                 break
             prev = {**current.model.params, **fixed}
             owners, jobs = [], []
@@ -607,8 +696,10 @@ def forward_select(
                 )  # fmt: skip
             rounds.append(tried)
             if within and shows_more(current.model):
-                within = False
-            if within:  # the first round is always fitted: its candidates are reported
+                within, strict = False, False
+            if (
+                within and not strict
+            ):  # the first round is always fitted: its candidates are reported
                 stop = "within_floor"
                 break
             for e, f in tried:
@@ -620,13 +711,14 @@ def forward_select(
             g_cur = heldout_gap(current, problem)
             proposal = _proposal(tried, problem, floor, settings.tie)
             if proposal is None:
-                stop = "no_improvement"
+                stop = "within_floor" if strict else "no_improvement"
                 break
             eff, best = proposal
             g_new = heldout_gap(best, problem)
-            too_small = g_new > (1.0 - settings.min_shrink) * g_cur
+            shrink = settings.strict_shrink if strict else settings.min_shrink
+            too_small = g_new > (1.0 - shrink) * g_cur
             if g_cur - g_new < settings.margin * floor or too_small:
-                stop = "no_improvement"
+                stop = "within_floor" if strict else "no_improvement"
                 break
             accepted.append((eff, best))
             effects.append(eff)
@@ -663,6 +755,20 @@ def forward_select(
                     accepted[-1] = (accepted[-1][0], current)
                 else:
                     current, final_problem, refined = base_fit, problem, None
+        box = None
+        n_continuous = sum(p.choices is None for p in current.free)
+        if (
+            accepted
+            and n_continuous >= 2
+            and "feedback" not in current.model.effects  # refined on the expected gap above
+            and heldout_gap(current, final_problem) > settings.box_ratio * floor
+        ):
+            current, box = box_refinement(
+                current, problem, fixed, fit_settings, seed, pool, progress
+            )
+            if box["kept"]:
+                accepted[-1] = (accepted[-1][0], current)
+                final_problem = problem
     return {
         "baseline": base_fit,
         "rounds": rounds,
@@ -673,4 +779,5 @@ def forward_select(
         "refined": refined,
         "went_on": went_on,
         "pair_check": pair_check,
+        "box": box,
     }

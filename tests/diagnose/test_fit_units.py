@@ -304,6 +304,8 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     assert [e for e, _f in sel["accepted"]] == ["restitution"]
     assert sel["final"].model.params == {"e": 0.5} and sel["final"].objective == 1.2
     assert ("restitution", ()) in calls and sel["stop"] == "no_improvement"
+    # the refit's cloud holds round 1's evaluations too (its intervals are drawn from it)
+    assert sel["final"].n_evals == 2 and len(sel["final"].cloud_gaps) == 2
     # the joint fits of round 2 search the low-Gamma steps first, round 1 and refits not
     assert continued["friction+restitution"] and continued["restitution+harmonic"]
     assert not continued["friction"] and not continued["restitution"]

@@ -43,6 +43,8 @@ import math
 import sys
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from bouncelab.gap.fit import (
     BOX_MAXITER,
     BOX_POPULATION,
@@ -574,6 +576,26 @@ def _without(problem, fit: FitResult, effect: str, fixed, fit_settings, seed, po
     return refit
 
 
+def _pooled_cloud(fit: FitResult, earlier: FitResult) -> FitResult:
+    """``fit`` with the evaluations of ``earlier``, a fit of the same model and
+    parameters on the same problem, added to its cloud (``fit`` itself otherwise).
+
+    Why: the refit of an inert addition (:func:`_without`) is a local search, so its own
+    cloud spans only a few Nelder-Mead steps and the intervals drawn from it
+    (:func:`bouncelab.gap.fit.bootstrap_params`) would be that narrow: on the blind
+    ``restitution_a`` and ``restitution_c`` e's interval no longer held the truth once
+    such a refit replaced the round-1 fit (session 25).
+    """
+    if fit.model.name != earlier.model.name or fit.free != earlier.free:
+        return fit
+    return replace(
+        fit,
+        cloud_x=np.vstack([earlier.cloud_x, fit.cloud_x]),
+        cloud_gaps=np.vstack([earlier.cloud_gaps, fit.cloud_gaps]),
+        n_evals=earlier.n_evals + fit.n_evals,
+    )
+
+
 def forward_select(
     problem: Problem,
     floor: float,
@@ -706,8 +728,8 @@ def forward_select(
                 if accepted and is_inert(e, f.model.params):
                     refit = _without(problem, f, e, fixed, fit_settings, seed, pool)
                     if heldout_gap(refit, problem) < heldout_gap(current, problem):
-                        current = refit  # the effects taken, better fitted
-                        accepted[-1] = (accepted[-1][0], refit)
+                        current = _pooled_cloud(refit, current)  # the effects taken, better fitted
+                        accepted[-1] = (accepted[-1][0], current)
             g_cur = heldout_gap(current, problem)
             proposal = _proposal(tried, problem, floor, settings.tie)
             if proposal is None:

@@ -766,6 +766,20 @@ def runner_up_fit_many(calls: list, table: dict, joint: str, gap_from):
     return fake_fit_many
 
 
+def runner_up_selection(monkeypatch, fake_fit_many, candidates: list, **settings) -> dict:
+    """The scripted selection of the runner-up tests below (floor 1, explained_ratio
+    0.5 and ``settings``): ``fake_fit_many`` from :func:`runner_up_fit_many`, fresh
+    ensembles that never decide."""
+    from bouncelab.gap import select
+
+    script_selection(monkeypatch, fake_fit_many)
+    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
+    return select.forward_select(
+        _OneStepProblem(), 1.0, candidates=candidates,
+        settings=select.SelectSettings(explained_ratio=0.5, **settings),
+    )  # fmt: skip
+
+
 def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monkeypatch):
     """Reference: a scripted selection (floor 1, explained_ratio 0.5). Round 1 takes
     restitution (10 -> 5); round 2 the armature beside it (-> 1.9), friction the
@@ -775,7 +789,6 @@ def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monk
     armature (ends at 0.9). The least fit-step objective is kept, and friction is
     accepted (blind ``seed_like_c``, diagnosis seed 3: 1.77 against 0.93 floors). No
     second start before the third round: round 2 has one per effect."""
-    from bouncelab.gap import select
 
     calls = []
     armature = {**_ARMATURE, "ride_load": 1.0}
@@ -788,12 +801,7 @@ def test_after_the_armature_the_runner_up_is_also_fitted_from_its_own_point(monk
     }
     joint = "friction+restitution+feedback"
     fake = runner_up_fit_many(calls, table, joint, lambda b: 0.9 if b.get("mu") == 0.2 else 1.8)
-    script_selection(monkeypatch, fake)
-    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["friction", "restitution", "feedback"],
-        settings=select.SelectSettings(explained_ratio=0.5),
-    )  # fmt: skip
+    sel = runner_up_selection(monkeypatch, fake, ["friction", "restitution", "feedback"])
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback", "friction"]
     assert sel["final"].objective == 0.9
     starts = [b for n, b in calls if n == joint]
@@ -812,7 +820,6 @@ def test_after_a_harmonic_the_runner_up_is_also_fitted_from_its_own_point(monkey
     where the harmonic left e: 2.65, no gain) and from the runner-up's values with the
     current harmonic (2.2): friction is accepted (independent
     ``friction_restitution_harmonic``, session 24: 2.65 against 2.20 floors)."""
-    from bouncelab.gap import select
 
     calls = []
     harmonic = {"a": 0.06, "psi": 2.5}  # k: round 1's choice
@@ -825,12 +832,8 @@ def test_after_a_harmonic_the_runner_up_is_also_fitted_from_its_own_point(monkey
     }
     joint = "friction+restitution+harmonic"
     fake = runner_up_fit_many(calls, table, joint, lambda b: 2.2 if b.get("mu") == 0.2 else 2.65)
-    script_selection(monkeypatch, fake)
-    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["friction", "restitution", "harmonic", "feedback"],
-        settings=select.SelectSettings(explained_ratio=0.5, tie=0.05),
-    )  # fmt: skip
+    candidates = ["friction", "restitution", "harmonic", "feedback"]
+    sel = runner_up_selection(monkeypatch, fake, candidates, tie=0.05)
     assert [e for e, _f in sel["accepted"]] == ["restitution", "harmonic", "friction"]
     assert sel["final"].objective == 2.2
     starts = [b for n, b in calls if n == joint]

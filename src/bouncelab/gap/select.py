@@ -719,11 +719,12 @@ def forward_select(
             rounds.append(tried)
             if within and shows_more(current.model):
                 within, strict = False, False
-            if (
-                within and not strict
-            ):  # the first round is always fitted: its candidates are reported
+            # the first round is always fitted: its candidates are reported
+            if within and not strict:
                 stop = "within_floor"
                 break
+            # a strict round that takes nothing ends as a run within the floor
+            no_gain = "within_floor" if strict else "no_improvement"
             for e, f in tried:
                 if accepted and is_inert(e, f.model.params):
                     refit = _without(problem, f, e, fixed, fit_settings, seed, pool)
@@ -733,14 +734,14 @@ def forward_select(
             g_cur = heldout_gap(current, problem)
             proposal = _proposal(tried, problem, floor, settings.tie)
             if proposal is None:
-                stop = "within_floor" if strict else "no_improvement"
+                stop = no_gain
                 break
             eff, best = proposal
             g_new = heldout_gap(best, problem)
             shrink = settings.strict_shrink if strict else settings.min_shrink
             too_small = g_new > (1.0 - shrink) * g_cur
             if g_cur - g_new < settings.margin * floor or too_small:
-                stop = "within_floor" if strict else "no_improvement"
+                stop = no_gain
                 break
             accepted.append((eff, best))
             effects.append(eff)

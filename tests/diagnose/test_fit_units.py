@@ -631,16 +631,16 @@ def test_min_contact_of_a_contact_sampled_at_instants_is_its_mean():
     assert got == pytest.approx(2 * np.pi * 30.0 * 8e-5, rel=0.05)
 
 
-@pytest.mark.parametrize("first_seed_gap", [2.0, 0.8])
+@pytest.mark.parametrize("first_seed_gap", [1.7, 0.8])
 def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_least(
     monkeypatch, first_seed_gap
 ):
     """Reference: a scripted selection. Round 1 takes restitution (10 -> 5). Round 2, the
     last with ``max_effects`` 2, fits the armature beside it with ``ARMATURE_SEEDS`` (3)
-    optimiser seeds ``seed + j * SEED_STRIDE``, which end at 2.0, 1.2 and 1.6 floors (the
+    optimiser seeds ``seed + j * SEED_STRIDE``, which end at 1.7, 1.2 and 1.6 floors (the
     orbit lottery of one search); the least on the fit steps (1.2) is the armature the
     round compares, and it beats a Gamma miscalibration at 1.5 that would win against the
-    first seed's 2.0 (and within the tie, 0.25 floors, as the simpler addition). Round 1
+    first seed's 1.7 (within the tie, 0.25 floors, as the simpler addition). Round 1
     and the other additions: one seed; the other ``ride_load`` choice's searches too.
     When the first seed's armature is the proposal within one floor (0.8), it settles
     the run: no other seed, no other choice."""
@@ -682,6 +682,50 @@ def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_l
         assert seeds[3:] == [0, 0]  # the other choice, every parameter and the armature's own
     # round 1's armature (each ride_load) and the miscalibration: one seed each
     assert [s for n, s in calls if n in ("feedback", "restitution+gamma_scale")] == [0, 0, 0]
+
+
+@pytest.mark.parametrize("trail, searched_again", [(0.2, True), (0.3, False)])
+def test_the_last_round_searches_the_armature_again_only_within_the_tie_of_the_best(
+    monkeypatch, trail, searched_again
+):
+    """Reference: a scripted selection. Round 1 takes restitution (10 -> 5). In round 2,
+    the last, a Gamma miscalibration reaches 1.5 floors and the armature's first search
+    1.5 + ``trail``. Within the tie (0.25 floors) its other seeds and its other
+    ``ride_load`` choice are searched, and its second seed's 1.2 is taken; beyond the tie
+    they are not, and the miscalibration is taken. Why: a false armature's first search
+    trailed by 0.35-0.36 floors on the runs measured, a true one by at most 0.09
+    (:func:`bouncelab.gap.select._armature_contends`)."""
+    from bouncelab.gap import select
+
+    calls = []
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
+            calls.append((name, seed))
+            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
+            gap = {"restitution": 5.0, "restitution+gamma_scale": 1.5}.get(name, 9.0)
+            if name == "restitution+feedback":
+                gap = 1.5 + trail if seed == 0 else 1.2
+            if "feedback" not in name:
+                params = {"s": 1.05} if "gamma_scale" in name else {}
+            out.append(scripted_fit(name, params, gap))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)
+    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
+        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
+    )  # fmt: skip
+    joint = [s for n, s in calls if n == "restitution+feedback"]
+    if searched_again:
+        assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
+        assert len(joint) == 5  # three seeds, then the other choice twice
+    else:
+        assert [e for e, _f in sel["accepted"]] == ["restitution", "gamma_scale"]
+        assert joint == [0]
 
 
 @pytest.mark.parametrize("phases_off", [False, True])

@@ -324,6 +324,29 @@ def _settled(tried, problem: Problem, floor: float, settings: SelectSettings) ->
     return pick is not None and pick[0] == "feedback" and settled
 
 
+def _armature_contends(tried, problem: Problem, floor: float, settings: SelectSettings) -> bool:
+    """Whether the armature of ``tried`` (one round's ``(effect, fit)``) is within ``tie``
+    floors of held-out gap of the best other addition: only then do its extra searches
+    (:func:`_armature_seeds`, :func:`_armature_again`) run. Inert additions count: their
+    gap is what the current model, refitted, gives without a new effect (blind
+    ``friction_restitution``, diagnosis seed 4: harmonic and miscalibration inert at 2.44
+    and 2.80 floors, the armature's first search 3.55; its extra searches took it to
+    1.56 and a false armature was selected).
+
+    Why: each costs as much as all other additions of the round, and where the armature
+    is not an effect they bought nothing. Measured in last rounds (first search against
+    the best other addition, in floors; docs/diagnosis.md section 4, session 26): a true
+    armature led or trailed by at most 0.09 (``seed_like_b`` seed 4: 1.89 against 1.80);
+    a false one trailed by 0.35-0.36 (independent ``friction_restitution_harmonic``: 2.56
+    against 2.20, about 90 s of extra searches for the same selection).
+    """
+    mine = dict(tried)
+    others = [heldout_gap(f, problem) for e, f in tried if e != "feedback"]
+    if "feedback" not in mine or not others:
+        return True
+    return heldout_gap(mine["feedback"], problem) - min(others) <= settings.tie * floor
+
+
 def _armature_seeds(tried, job, pool, progress, floor, settings):
     """``tried`` of the last round with the armature's joint fit run again with
     :data:`ARMATURE_SEEDS` - 1 more optimiser seeds (``seed + j * SEED_STRIDE``), the
@@ -338,6 +361,8 @@ def _armature_seeds(tried, job, pool, progress, floor, settings):
         return tried
     problem, _name, _prev, _fixed, _search, _settings, seed, *_more = job
     if _settled(tried, problem, floor, settings):
+        return tried
+    if not _armature_contends(tried, problem, floor, settings):
         return tried
     mine = dict(tried)
     jobs = [(*job[:6], seed + j * SEED_STRIDE, *job[7:]) for j in range(1, ARMATURE_SEEDS)]
@@ -382,6 +407,8 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
     problem, start, fixed, fit_settings, seed = job
     mine = dict(tried)
     if "feedback" not in mine or _settled(tried, problem, floor, settings):
+        return tried
+    if not _armature_contends(tried, problem, floor, settings):
         return tried
     name = mine["feedback"].model.name
     others = [v for v in RIDE_LOAD_CHOICES if v != kept]

@@ -934,6 +934,47 @@ def test_an_armature_taken_alone_is_checked_against_every_pair(monkeypatch, pair
         assert sel["accepted"][0][1].model.name == "gamma_scale"  # its round-1 fit
 
 
+def test_the_pairs_come_before_a_strict_round_after_the_armature_alone(monkeypatch):
+    """Reference: a scripted selection (floor 1). Round 1 takes the armature alone at 1.13
+    floors: within explained_ratio (2) but above strict_ratio (1), where a strict round
+    would go on. Beside the armature, friction would reach 0.17 (85 % less: the strict
+    round takes it); friction with a Gamma miscalibration reaches 0.12. The independent
+    ``friction_gamma_scale`` (mu 0.2, s 0.93) took the armature and friction this way in
+    session 25. The pairs are checked first, where the armature alone would have ended
+    the selection: the pair replaces it, and the run ends within the floor."""
+    from bouncelab.gap import select
+
+    calls = []
+    armature = {"mass_ratio": 0.08, "f_ratio": 0.05, "zeta": 0.86}
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append(name)
+            gap, params = {
+                "ideal": (10.0, {}),
+                "friction": (4.9, {"mu": 0.4}),
+                "gamma_scale": (3.8, {"s": 0.9}),
+                "feedback": (1.13, armature),
+                "friction+feedback": (0.17, {**armature, "mu": 0.2}),
+                "friction+gamma_scale": (0.12, {"mu": 0.2, "s": 0.93}),
+            }.get(name, (9.0, {}))
+            if "feedback" in name:
+                params = {**params, "ride_load": fixed.get("ride_load", 1.0)}
+            out.append(scripted_fit(name, params, gap))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "gamma_scale", "feedback"]
+    )
+    assert [e for e, _f in sel["accepted"]] == ["gamma_scale", "friction"]
+    assert sel["pair_check"]["replaced_by"] == ["gamma_scale", "friction"]
+    assert sel["final"].objective == 0.12 and sel["stop"] == "within_floor"
+    assert "friction+feedback" not in calls  # no strict round beside the armature
+    assert calls.count("friction+gamma_scale") == 1
+
+
 def test_no_pair_check_when_the_armature_is_not_alone(monkeypatch):
     """Reference: a scripted selection. Round 1 takes restitution (10 -> 5), round 2 the
     armature beside it (-> 1.5, within the floor): no pairs are fitted."""

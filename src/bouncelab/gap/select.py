@@ -22,8 +22,9 @@ strength sits at its null value (:data:`INERT`: friction with mu 0) adds nothing
 better refit of the effects already taken: it is not accepted; the current model takes
 that refit's values (refined locally without the inert effect) when they do better,
 and the next addition is judged against it; an effect the final refinement takes to its
-null value is dropped the same way. A selection that ends with the armature alone is
-checked against every pair of the other effects (:func:`_pair_for_armature`). The
+null value is dropped the same way. A selection that ends with the armature alone (or
+would, before a strict round) is checked against every pair of the other effects
+(:func:`_pair_for_armature`). The
 selected model's parameters are then refined (:func:`bouncelab.gap.fit.refine_settings`).
 All gaps here are weighted means over held-out steps in radians
 (:meth:`bouncelab.gap.fit.Problem.mean`);
@@ -488,7 +489,10 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
     damped loaded armature (zeta 0.56) came out at 1.13 floors alone, within the floor,
     where friction alone reached 4.9 and the miscalibration 3.8; the pair reaches 0.12
     (docs/diagnosis.md section 4, session 23). Only for an armature taken alone: a round
-    of fits without the armature costs little beside one with it.
+    of fits without the armature costs little beside one with it. Called where the
+    armature alone would end the selection: at its stop, and before a strict round
+    (:class:`SelectSettings`), which would otherwise go on from the armature (that
+    recording: friction beside it, 1.13 -> 0.17 floors, and no check).
     """
     if [e for e, _f in accepted] != ["feedback"] or not rounds:
         return accepted, None, []
@@ -683,6 +687,8 @@ def forward_select(
         current = base_fit
         effects = list(base_model.effects)
         rounds, accepted, went_on = [], [], []
+        pair_check, pair_fits = None, []
+        pair_job = (problem, base_fit, fixed, fit_settings, seed)
 
         def shows_more(model) -> bool:
             """Whether the data shows ``model`` wrong beyond the flight times (the reason
@@ -701,6 +707,15 @@ def forward_select(
             # above strict_ratio a run within the floor still tries the next round, but
             # takes an addition only when it removes strict_shrink of the gap
             strict = within and g_cur > settings.strict_ratio * floor
+            if strict and rounds and pair_check is None:
+                # the armature alone would end the selection here: its pairs come first
+                accepted, pair_check, pair_fits = _pair_for_armature(
+                    rounds, accepted, pair_job, pool, progress, floor, settings
+                )
+                if pair_check is not None and "replaced_by" in pair_check:
+                    effects = [*base_model.effects, *pair_check["replaced_by"]]
+                    current = accepted[-1][1]
+                    continue
             if strict and rounds:
                 within = False
             if within and rounds:
@@ -773,12 +788,12 @@ def forward_select(
             accepted.append((eff, best))
             effects.append(eff)
             current = best
-        accepted, pair_check, pair_fits = _pair_for_armature(
-            rounds, accepted, (problem, base_fit, fixed, fit_settings, seed),
-            pool, progress, floor, settings,
-        )  # fmt: skip
-        if pair_check is not None and "replaced_by" in pair_check:
-            current = accepted[-1][1]
+        if pair_check is None:
+            accepted, pair_check, pair_fits = _pair_for_armature(
+                rounds, accepted, pair_job, pool, progress, floor, settings
+            )
+            if pair_check is not None and "replaced_by" in pair_check:
+                current = accepted[-1][1]
         final_problem, refined = problem, None
         if accepted:
             done = [base_fit] + [f for tried in rounds for _e, f in tried] + pair_fits

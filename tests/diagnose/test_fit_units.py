@@ -267,6 +267,24 @@ def table_fit_many(gaps: dict, params: dict, names: list | None = None):
     return fake_fit_many
 
 
+def armature_table_fit_many(table: dict, calls: list):
+    """A scripted ``fit_many`` that looks each job's model up in ``table`` (name -> (gap,
+    params); default 9 floors and none), gives armature models the job's ``ride_load``
+    (default 1) and records the model names in ``calls``."""
+
+    def fake_fit_many(jobs, pool=None, progress=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
+            calls.append(name)
+            gap, params = table.get(name, (9.0, {}))
+            if "feedback" in name:
+                params = {**params, "ride_load": fixed.get("ride_load", 1.0)}
+            out.append(scripted_fit(name, params, gap))
+        return out
+
+    return fake_fit_many
+
+
 def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     """Reference: a scripted selection (gaps in noise floors, held-out gap = objective).
     Round 1 takes restitution (10 -> 5). In round 2 friction at mu 0 "shrinks" the gap to
@@ -631,6 +649,22 @@ def test_min_contact_of_a_contact_sampled_at_instants_is_its_mean():
     assert got == pytest.approx(2 * np.pi * 30.0 * 8e-5, rel=0.05)
 
 
+def armature_last_round(monkeypatch, fake_fit_many) -> dict:
+    """A scripted selection over restitution, the armature and a Gamma miscalibration
+    whose round 2 is the last (``max_effects`` 2, ``explained_ratio`` 0.5): the
+    armature with ``ARMATURE_SEEDS`` (3) seeds, both ``ride_load`` choices alike on
+    fresh ensembles."""
+    from bouncelab.gap import select
+
+    script_selection(monkeypatch, fake_fit_many)
+    monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)
+    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
+    return select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
+        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
+    )  # fmt: skip
+
+
 @pytest.mark.parametrize("first_seed_gap", [1.7, 0.8])
 def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_least(
     monkeypatch, first_seed_gap
@@ -664,13 +698,7 @@ def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_l
                 out.append(scripted_fit(name, params if "feedback" in name else {}, 9.0))
         return out
 
-    script_selection(monkeypatch, fake_fit_many)
-    monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)
-    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
-        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
-    )  # fmt: skip
+    sel = armature_last_round(monkeypatch, fake_fit_many)
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
     seeds = [s for n, s in calls if n == "restitution+feedback"]
     if first_seed_gap < 1.0:
@@ -695,7 +723,6 @@ def test_the_last_round_searches_the_armature_again_only_within_the_tie_of_the_b
     they are not, and the miscalibration is taken. Why: a false armature's first search
     trailed by 0.35-0.36 floors on the runs measured, a true one by at most 0.09
     (:func:`bouncelab.gap.select._armature_contends`)."""
-    from bouncelab.gap import select
 
     calls = []
 
@@ -712,13 +739,7 @@ def test_the_last_round_searches_the_armature_again_only_within_the_tie_of_the_b
             out.append(scripted_fit(name, params, gap))
         return out
 
-    script_selection(monkeypatch, fake_fit_many)
-    monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)
-    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
-        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
-    )  # fmt: skip
+    sel = armature_last_round(monkeypatch, fake_fit_many)
     joint = [s for n, s in calls if n == "restitution+feedback"]
     if searched_again:
         assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
@@ -946,25 +967,15 @@ def test_the_pairs_come_before_a_strict_round_after_the_armature_alone(monkeypat
 
     calls = []
     armature = {"mass_ratio": 0.08, "f_ratio": 0.05, "zeta": 0.86}
-
-    def fake_fit_many(jobs, pool=None, progress=None):
-        out = []
-        for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
-            calls.append(name)
-            gap, params = {
-                "ideal": (10.0, {}),
-                "friction": (4.9, {"mu": 0.4}),
-                "gamma_scale": (3.8, {"s": 0.9}),
-                "feedback": (1.13, armature),
-                "friction+feedback": (0.17, {**armature, "mu": 0.2}),
-                "friction+gamma_scale": (0.12, {"mu": 0.2, "s": 0.93}),
-            }.get(name, (9.0, {}))
-            if "feedback" in name:
-                params = {**params, "ride_load": fixed.get("ride_load", 1.0)}
-            out.append(scripted_fit(name, params, gap))
-        return out
-
-    script_selection(monkeypatch, fake_fit_many)
+    table = {
+        "ideal": (10.0, {}),
+        "friction": (4.9, {"mu": 0.4}),
+        "gamma_scale": (3.8, {"s": 0.9}),
+        "feedback": (1.13, armature),
+        "friction+feedback": (0.17, {**armature, "mu": 0.2}),
+        "friction+gamma_scale": (0.12, {"mu": 0.2, "s": 0.93}),
+    }
+    script_selection(monkeypatch, armature_table_fit_many(table, calls))
     sel = select.forward_select(
         _OneStepProblem(), 1.0, candidates=["friction", "gamma_scale", "feedback"]
     )
@@ -981,27 +992,14 @@ def test_no_pair_check_when_the_armature_is_not_alone(monkeypatch):
     from bouncelab.gap import select
 
     calls = []
-
-    def fake_fit_many(jobs, pool=None, progress=None):
-        out = []
-        for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
-            calls.append(name)
-            gap, params = {
-                "ideal": (10.0, {}),
-                "restitution": (5.0, {"e": 0.3}),
-                "feedback": (6.0, {"mass_ratio": 0.1, "f_ratio": 0.4, "zeta": 0.5}),
-                "restitution+feedback": (
-                    1.5,
-                    {"e": 0.4, "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1},
-                ),
-                "friction+restitution": (4.0, {"mu": 0.1, "e": 0.3}),
-            }.get(name, (9.0, {}))
-            if "feedback" in name:
-                params = {**params, "ride_load": fixed.get("ride_load", 1.0)}
-            out.append(scripted_fit(name, params, gap))
-        return out
-
-    script_selection(monkeypatch, fake_fit_many)
+    table = {
+        "ideal": (10.0, {}),
+        "restitution": (5.0, {"e": 0.3}),
+        "feedback": (6.0, {"mass_ratio": 0.1, "f_ratio": 0.4, "zeta": 0.5}),
+        "restitution+feedback": (1.5, {"e": 0.4, "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1}),
+        "friction+restitution": (4.0, {"mu": 0.1, "e": 0.3}),
+    }
+    script_selection(monkeypatch, armature_table_fit_many(table, calls))
     sel = select.forward_select(
         _OneStepProblem(), 1.0, candidates=["friction", "restitution", "feedback"]
     )

@@ -337,9 +337,10 @@ def _armature_contends(tried, problem: Problem, floor: float, settings: SelectSe
     Why: each costs as much as all other additions of the round, and where the armature
     is not an effect they bought nothing. Measured in last rounds (first search against
     the best other addition, in floors; docs/diagnosis.md section 4, session 26): a true
-    armature led or trailed by at most 0.09 (``seed_like_b`` seed 4: 1.89 against 1.80);
-    a false one trailed by 0.35-0.36 (independent ``friction_restitution_harmonic``: 2.56
-    against 2.20, about 90 s of extra searches for the same selection).
+    armature led or trailed by at most 0.13 (blind ``seed_like_b`` seed 1: 1.97 against
+    1.84), on nine runs; a false one trailed by 0.35 or more, or nothing else gained
+    (independent ``friction_restitution_harmonic``: 2.56 against 2.20, about 100 s of
+    extra searches for the same selection).
     """
     mine = dict(tried)
     others = [heldout_gap(f, problem) for e, f in tried if e != "feedback"]

@@ -986,6 +986,39 @@ def test_the_pairs_come_before_a_strict_round_after_the_armature_alone(monkeypat
     assert calls.count("friction+gamma_scale") == 1
 
 
+@pytest.mark.parametrize("a_interval, kept", [((0.0, 0.013), False), ((0.007, 0.010), True)])
+def test_a_later_effect_whose_refined_interval_reaches_its_null_value_is_dropped(
+    monkeypatch, a_interval, kept
+):
+    """Reference: a scripted selection (floor 1). Round 1 takes restitution (10 -> 5),
+    round 2 a harmonic of a 0.008 beside it (-> 1.0). With the harmonic's interval
+    after the refinement reaching a = 0 (0 to 0.013: blind ``g_restitution_low`` with
+    diagnosis seed 3) the harmonic is dropped, restitution refitted without it, and
+    ``weak_last`` says why; with an interval clear of the null band (0.007 to 0.010,
+    the band being a <= 0.0025) it is kept."""
+    from bouncelab.gap import select
+
+    calls = []
+    table = {
+        "ideal": (10.0, {}),
+        "restitution": (5.0, {"e": 0.3}),
+        "restitution+harmonic": (1.0, {"e": 0.3, "a": 0.008, "k": 2.0, "psi": 0.7}),
+    }
+    script_selection(monkeypatch, armature_table_fit_many(table, calls))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "harmonic"],
+        interval=lambda fit, problem, i: {"a": list(a_interval)},
+    )  # fmt: skip
+    taken = [e for e, _f in sel["accepted"]]
+    if kept:
+        assert taken == ["restitution", "harmonic"] and sel["weak_last"] is None
+        assert sel["final"].objective == 1.0
+    else:
+        assert taken == ["restitution"] and sel["final"].objective == 5.0
+        assert sel["weak_last"] == {"effect": "harmonic", "param": "a", "interval": [0.0, 0.013]}
+        assert calls[-1] == "restitution"  # refitted without the harmonic
+
+
 def test_no_pair_check_when_the_armature_is_not_alone(monkeypatch):
     """Reference: a scripted selection. Round 1 takes restitution (10 -> 5), round 2 the
     armature beside it (-> 1.5, within the floor): no pairs are fitted."""

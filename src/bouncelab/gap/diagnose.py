@@ -270,6 +270,9 @@ def diagnose_flights(
         workers=workers,
         progress=progress,
         unsettled=phases_reason,
+        interval=lambda fit, prob, i: _fit_summary(fit, prob, seed + i, fit_settings.n_boot)[
+            "params_ci"
+        ],
     )
     base_fit: FitResult = sel["baseline"]
     g_base = heldout_gap(base_fit, problem)
@@ -333,6 +336,13 @@ def diagnose_flights(
             f"the shaker's armature alone ({pair['armature']:.3g} noise floors held out) "
             f"was replaced by {a} + {b} ({pair['pairs'][f'{a}+{b}']:.3g})"
         )
+    weak = sel["weak_last"]
+    if weak:
+        lo, hi = weak["interval"]
+        warnings.append(
+            f"{weak['effect']} was dropped: after the refinement its {weak['param']} "
+            f"interval [{lo:.4g}, {hi:.4g}] reaches its null value"
+        )
 
     final: FitResult = sel["final"]
     final_gap = heldout_gap(final, problem)
@@ -382,6 +392,7 @@ def diagnose_flights(
         "went_on": sel["went_on"],
         # an armature taken alone against every pair of the other effects, or null
         "pair_check": sel["pair_check"],
+        "weak_last": sel["weak_last"],
         "rounds": [
             [
                 {

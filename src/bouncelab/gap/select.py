@@ -349,6 +349,15 @@ def _armature_contends(tried, problem: Problem, floor: float, settings: SelectSe
     return heldout_gap(mine["feedback"], problem) - min(others) <= settings.tie * floor
 
 
+def _worth_searching_again(tried, problem: Problem, floor: float, settings) -> bool:
+    """Whether the last round's armature gets its extra searches: it does not settle the
+    run already (:func:`_settled`) and contends with the other additions
+    (:func:`_armature_contends`)."""
+    return not _settled(tried, problem, floor, settings) and _armature_contends(
+        tried, problem, floor, settings
+    )
+
+
 def _armature_seeds(tried, job, pool, progress, floor, settings):
     """``tried`` of the last round with the armature's joint fit run again with
     :data:`ARMATURE_SEEDS` - 1 more optimiser seeds (``seed + j * SEED_STRIDE``), the
@@ -362,9 +371,7 @@ def _armature_seeds(tried, job, pool, progress, floor, settings):
     if job is None or ARMATURE_SEEDS <= 1:
         return tried
     problem, _name, _prev, _fixed, _search, _settings, seed, *_more = job
-    if _settled(tried, problem, floor, settings):
-        return tried
-    if not _armature_contends(tried, problem, floor, settings):
+    if not _worth_searching_again(tried, problem, floor, settings):
         return tried
     mine = dict(tried)
     jobs = [(*job[:6], seed + j * SEED_STRIDE, *job[7:]) for j in range(1, ARMATURE_SEEDS)]
@@ -408,9 +415,7 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
     """
     problem, start, fixed, fit_settings, seed = job
     mine = dict(tried)
-    if "feedback" not in mine or _settled(tried, problem, floor, settings):
-        return tried
-    if not _armature_contends(tried, problem, floor, settings):
+    if "feedback" not in mine or not _worth_searching_again(tried, problem, floor, settings):
         return tried
     name = mine["feedback"].model.name
     others = [v for v in RIDE_LOAD_CHOICES if v != kept]

@@ -98,3 +98,37 @@ def test_diagnosis_table_shows_e_rigid_plate_beside_the_armature(tmp_path):
     first, second = (row[1] for row in table["rows"])
     assert "e_rigid_plate" not in first
     assert second.endswith("; e_rigid_plate = 0.503") and "e = 0.5708" in second
+
+
+def test_diagnosis_text_shows_the_verdict_margin_and_the_run_level_warnings(tmp_path):
+    """The verdict's margin is printed beside the final gap, and the warnings that belong
+    to no step (the selection's and the verdict's) are listed once, while a step's own
+    warning stays in its table row only (reference: the JSON values as written)."""
+    import json
+
+    from bouncelab.report.content import diagnosis_blocks
+
+    run = tmp_path / "runs" / "r"
+    run.mkdir(parents=True)
+    step_warning = "e and mass_ratio trade off (bootstrap correlation +0.93)"
+    run_warning = "only 2 Gamma steps are held out (2.5, 4): the verdict rests on them alone"
+    diag = {
+        "baseline": {"model": "ideal", "gap": 3.2},
+        "noise_floor": 0.53,
+        "final_gap": 1.61,
+        "unexplained": True,
+        "verdict_margin": {"rel_gap": 3.015, "se": 2.009, "n_heldout": 2, "limit": 3.0},
+        "steps": [
+            {"effect": "restitution", "model": "restitution", "params": {"e": 0.5},
+             "gap": 2.0, "shrink": 0.3, "warnings": []},
+            {"effect": "feedback", "model": "restitution+feedback", "params": {"e": 0.5},
+             "gap": 1.61, "shrink": 0.2, "warnings": [step_warning]},
+        ],
+        "warnings": [f"restitution+feedback: {step_warning}", run_warning],
+    }  # fmt: skip
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+    blocks = diagnosis_blocks(tmp_path, "r", tmp_path / "captions.yaml")
+    texts = [b["text"] for b in blocks if b["type"] == "text"]
+    assert any("(3.02 +- 2 noise floors over 2 held-out Gamma steps; limit 3)" in t for t in texts)
+    (listed,) = [t for t in texts if t.startswith("Warnings:")]
+    assert run_warning in listed and step_warning not in listed

@@ -250,6 +250,13 @@ def diagnosis_blocks(results: Path, run: str, captions: Path) -> list[dict]:
         else "What remains is within the noise floor (explained)."
     )
     reasons = diag.get("unexplained_reasons") or []
+    margin = diag.get("verdict_margin") or {}
+    margin_text = (
+        f" ({fmt(margin['rel_gap'], 3)} +- {fmt(margin['se'], 2)} noise floors over "
+        f"{margin['n_heldout']} held-out Gamma steps; limit {fmt(margin['limit'])})"
+        if margin.get("se") is not None
+        else ""
+    )
     blocks.append(
         {
             "type": "text",
@@ -257,11 +264,20 @@ def diagnosis_blocks(results: Path, run: str, captions: Path) -> list[dict]:
                 f"Baseline model {base['model']}: gap {fmt(base['gap'])} rad against a noise "
                 f"floor of {fmt(floor)} rad. Effects accepted, in order: "
                 f"{', '.join(diag.get('selected') or []) or 'none'}; final gap "
-                f"{fmt(diag.get('final_gap'))} rad. {verdict}"
+                f"{fmt(diag.get('final_gap'))} rad{margin_text}. {verdict}"
                 + (f" Why: {'; '.join(map(str, reasons))}." if reasons else "")
             ),
         }
     )
+    # the selection's and the verdict's own warnings (the steps' are in the table below)
+    of_steps = {
+        f"{s['model']}: {w}" for s in diag.get("steps", []) for w in s.get("warnings") or []
+    }
+    run_warnings = [w for w in diag.get("warnings") or [] if w not in of_steps]
+    if run_warnings:
+        blocks.append(
+            {"type": "text", "text": "Warnings: " + "; ".join(map(str, run_warnings)) + "."}
+        )
     cal = diag.get("calibration") or {}
     cal_text = (
         _params_text(

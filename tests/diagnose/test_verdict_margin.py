@@ -77,3 +77,23 @@ def test_a_clear_verdict_gives_no_warning():
     p = problem_of(np.full(10, 0.1), np.ones(10, dtype=bool))
     m = verdict_margin(p, 0.1 * ratios, limit=3.0)
     assert m["borderline"] is False and margin_warnings(m, np.arange(10.0)) == []
+
+
+@pytest.mark.parametrize("borderline", [True, False, None])
+def test_the_command_line_names_a_borderline_verdict_with_its_margin(borderline):
+    """``bouncelab diagnose`` prints its one line with the margin only when the verdict
+    is borderline (reference: the values given, as formatted)."""
+    from pathlib import Path
+
+    from bouncelab.cli.diagnose import summary_line
+
+    result = {
+        "selected": ["restitution", "feedback"], "unexplained": True, "final_gap": 1.613,
+        "noise_floor": 0.5348, "baseline": {"gap": 3.241},
+        "verdict_margin": {"rel_gap": 3.015, "se": 2.009, "limit": 3.0, "borderline": borderline},
+    }  # fmt: skip
+    line = summary_line(Path("out.json"), result)
+    assert line.startswith("wrote out.json: selected restitution, feedback; gap 3.241 -> 1.613")
+    tail = " (borderline: 3.02 +- 2 noise floors against the limit 3)"
+    assert line.endswith("unexplained" + tail) == bool(borderline)
+    assert line.endswith(", unexplained") == (not borderline)

@@ -80,11 +80,22 @@ def run(args) -> int:
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")
+    print(summary_line(out, result), file=sys.stderr)
+    return 0
+
+
+def summary_line(out: Path, result: dict) -> str:
+    """The one line the command prints: what was selected, the gap before and after, the
+    verdict, and its margin when the verdict is borderline (``verdict_margin``)."""
     sel = ", ".join(result["selected"]) or "nothing"
     verdict = "unexplained" if result["unexplained"] else "explained"
-    print(
+    margin = result.get("verdict_margin") or {}
+    if margin.get("borderline"):
+        verdict += (
+            f" (borderline: {margin['rel_gap']:.3g} +- {margin['se']:.2g} noise floors "
+            f"against the limit {margin['limit']:g})"
+        )
+    return (
         f"wrote {out}: selected {sel}; gap {result['baseline']['gap']:.4g} -> "
-        f"{result['final_gap']:.4g} rad (noise floor {result['noise_floor']:.4g}), {verdict}",
-        file=sys.stderr,
+        f"{result['final_gap']:.4g} rad (noise floor {result['noise_floor']:.4g}), {verdict}"
     )
-    return 0

@@ -82,9 +82,10 @@ def verdict_margin(problem: Problem, gaps: np.ndarray, limit: float) -> dict:
 
     Returns ``{"rel_gap", "se", "n_heldout", "limit", "borderline"}``; ``borderline``
     when the limit lies within one standard error of the gap (None with one step).
-    Why: on the five-seed blind combinations (35 runs) the standard error is 0.2-0.9
-    floors (median 0.42); 8 runs end within one of the limit 3, and 3 of those 8 verdicts
-    or sets are wrong against 2 of the other 27 (docs/diagnosis.md section 4, session 27).
+    Why: on the five-seed blind combinations (35 runs) the standard error is 0.21-0.69
+    floors (10th-90th percentile; median 0.42); 8 runs end within one of the limit 3, and
+    3 of those 8 sets or verdicts are wrong against 2 of the other 27 (docs/diagnosis.md
+    section 4, session 27).
     """
     mask = problem.heldout
     ratio = (problem.clipped(np.asarray(gaps, dtype=float)) / problem.floor)[mask]
@@ -453,7 +454,7 @@ def diagnose_flights(
         # the final gap's standard error over the held-out steps, against the limit
         "verdict_margin": margin,
         "unexplained_reasons": reasons,
-        # friction's mu and restitution's e refitted on each half of the Gamma steps
+        # friction's mu, restitution's e and a harmonic's a refitted on each half of the steps
         "strength_by_half": by_half,
         "stop": sel["stop"],
         # the takeoff-phase reasons that kept the selection going within the floor

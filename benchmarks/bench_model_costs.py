@@ -6,8 +6,9 @@ measures what a cycle costs: one :func:`bouncelab.gap.fit.step_gaps` evaluation 
 4-member ensemble of a diagnosis, the gaps to the data included) on one thread, as an
 :class:`~bouncelab.gap.fit.EvaluationPool` worker runs it, for every model the selection
 fits (the ideal ball and up to three effects together), on recordings of the independent
-generator (``independent_rig.py``) of three protocols. The numbers are what a budget counting the
-cost of a simulation, not its cycles, would be built on (docs/diagnosis.md section 5).
+generator (``independent_rig.py``) of three protocols. The numbers are what a budget
+counting the cost of a simulation, not its cycles, would be built on (docs/diagnosis.md
+section 5).
 
 Measures, prints and writes ``benchmarks/results/model_costs.json``.
 Run: ``python benchmarks/bench_model_costs.py [--seconds 1.0]`` (about 2 minutes).

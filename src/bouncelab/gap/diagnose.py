@@ -101,6 +101,12 @@ def verdict_margin(problem: Problem, gaps: np.ndarray, limit: float) -> dict:
     }
 
 
+def step_warning(model_name: str, warning: str) -> str:
+    """A step's warning as the run's ``warnings`` list holds it: named by its model (the
+    report tells these from the run-level warnings by this form)."""
+    return f"{model_name}: {warning}"
+
+
 def margin_warnings(margin: dict, heldout_gammas) -> list[str]:
     """The run-level warnings of :func:`verdict_margin`'s result: too few held-out steps
     (:data:`FEW_HELDOUT`), and a verdict within one standard error of its limit."""
@@ -389,7 +395,7 @@ def diagnose_flights(
                 for k, p in CALIBRATION_PARAMS.items()
                 if p in fit.model.params
             }
-        warnings += [f"{fit.model.name}: {w}" for w in summary["warnings"]]
+        warnings += [step_warning(fit.model.name, w) for w in summary["warnings"]]
         steps.append(entry)
         prev_g = g
 

@@ -21,6 +21,7 @@ import yaml
 
 from bouncelab import __version__
 from bouncelab.energy import seed_energy_reconstruction
+from bouncelab.gap.diagnose import step_warning
 from bouncelab.report.claims import claims_table
 from bouncelab.report.errata import ERRATA
 
@@ -271,7 +272,7 @@ def diagnosis_blocks(results: Path, run: str, captions: Path) -> list[dict]:
     )
     # the selection's and the verdict's own warnings (the steps' are in the table below)
     of_steps = {
-        f"{s['model']}: {w}" for s in diag.get("steps", []) for w in s.get("warnings") or []
+        step_warning(s["model"], w) for s in diag.get("steps", []) for w in s.get("warnings") or []
     }
     run_warnings = [w for w in diag.get("warnings") or [] if w not in of_steps]
     if run_warnings:

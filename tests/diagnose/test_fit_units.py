@@ -542,9 +542,38 @@ def test_refine_budget_scales_with_the_run_and_skips_small_models():
     assert refine_settings(problem(100), ("friction", "restitution"), settings, fixed) is None
     # what the rounds spent comes off DIAGNOSIS_CYCLES: less left, fewer generations
     left = fit.DIAGNOSIS_CYCLES - fit.REFINE_CYCLES / 2
-    half = int(fit.REFINE_CYCLES / 2 / (cycles * fit.REFINE_DRAWS) // population) - 1
-    assert refine_settings(problem(cycles), combo, settings, None, left).maxiter == half
+    run = 1000  # short enough that half the refinement still runs its evolution
+    half = int(fit.REFINE_CYCLES / 2 / (run * fit.REFINE_DRAWS) // population) - 1
+    assert fit.REFINE_DE_GENERATIONS <= half < fit.REFINE_MAXITER
+    assert refine_settings(problem(run), combo, settings, None, left).maxiter == half
     assert refine_settings(problem(cycles), combo, settings, None, fit.DIAGNOSIS_CYCLES) is None
+
+
+def test_a_refinement_too_short_for_its_evolution_is_the_local_search_alone():
+    """Between REFINE_MIN_GENERATIONS and REFINE_DE_GENERATIONS generations the
+    refinement's settings have maxiter 0 (the local search alone); at
+    REFINE_DE_GENERATIONS the evolution runs."""
+    import pandas as pd
+
+    from bouncelab.gap import fit
+    from bouncelab.gap.fit import FitSettings, Problem, refine_settings
+
+    def problem(cycles):
+        p = Problem.__new__(Problem)
+        p.protocol = pd.DataFrame({"cycles": [cycles]})
+        return p
+
+    combo = ("friction", "restitution", "feedback")
+    population = 48
+    assert fit.REFINE_MIN_GENERATIONS < fit.REFINE_DE_GENERATIONS
+
+    def cycles_for(generations):  # the longest run that still gets this many
+        return fit.REFINE_CYCLES / fit.REFINE_DRAWS / population / (generations + 1)
+
+    for gens in range(fit.REFINE_MIN_GENERATIONS, fit.REFINE_DE_GENERATIONS + 2):
+        got = refine_settings(problem(cycles_for(gens) * 0.999), combo, FitSettings())
+        want = 0 if gens < fit.REFINE_DE_GENERATIONS else gens
+        assert got is not None and got.maxiter == want, gens
 
 
 def test_feedback_search_generations_shrink_on_long_runs():

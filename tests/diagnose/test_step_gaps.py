@@ -174,6 +174,25 @@ def test_fit_in_an_evaluation_pool_equals_the_serial_fit(problem):
     assert pooled.model.params == serial.model.params
 
 
+def test_no_generations_is_the_local_search_alone(problem):
+    """maxiter 0 (a refinement too short for its evolution): no global search, the
+    Nelder-Mead search from ``base`` alone, at most local_evals per free parameter, and
+    its first evaluation is ``base`` itself."""
+    settings = FitSettings(maxiter=0, local_evals=4)
+    base = {"mu": 0.1, "e": 0.5}
+    fit = fit_model(problem, "friction+restitution", base, settings=settings, seed=2)
+    assert 2 < fit.n_evals <= 4 * 2
+    np.testing.assert_allclose(fit.cloud_x[0], [0.1, 0.5])
+    with_search = fit_model(
+        problem,
+        "friction+restitution",
+        base,
+        seed=2,
+        settings=FitSettings(maxiter=1, popsize=1, local_evals=4),
+    )
+    assert with_search.n_evals > fit.n_evals
+
+
 def test_several_draws_average_the_capped_gaps_of_shifted_ensembles(problem):
     """n_draws = 3 gives the mean over the ensembles shifted by 0, 1/3 and 2/3 of the
     member spacing of each one's capped gaps (the refinement's expected gap)."""

@@ -205,6 +205,16 @@ BOX_MAXITER = 30
 #: instead of 89 s (goal 120 s).
 REFINE_MIN_GENERATIONS = 8
 
+#: Fewer generations than this and the refinement leaves its differential evolution out:
+#: only its local search runs (Nelder-Mead on the expected gap, from the fitted values;
+#: ``maxiter`` 0). Why: that evolution starts with the fitted values in its population
+#: and needs many generations to beat them. Logged in session 28 (docs/diagnosis.md
+#: section 4): on the blind refinements of 24-33 generations (the four seed-like cases
+#: and ``feedback_a``) it first did at generation 11, 12, 14, 23 and 26; on the
+#: independent ``vibration_27hz`` (9 generations, 479 evaluations of three ensembles,
+#: about a sixth of the run's time) never, and the local search gained 1.2 %.
+REFINE_DE_GENERATIONS = 12
+
 #: The selected model is refined when it has at least this many continuous parameters:
 #: the round budgets find one or two parameters, not the armature's curved valley.
 REFINE_MIN_PARAMS = 3
@@ -221,7 +231,8 @@ class FitSettings:
         least over the members. 1 runs the model alone.
     popsize : differential-evolution population per free parameter...
     max_population : ...but at most this many in all (joint fits of combinations).
-    maxiter : differential-evolution generations after the initial population.
+    maxiter : differential-evolution generations after the initial population; 0: no
+        global search, the local one alone (from ``base``).
     tol : relative convergence tolerance of differential evolution.
     local_evals : Nelder-Mead evaluations per free parameter after the global search.
     n_boot : bootstrap resamples of the fit steps for the intervals.
@@ -1036,7 +1047,7 @@ def fit_model(
         proto.effects, settings, problem_cycles(problem) if seeded else None
     )
     extra = {}
-    if glob:
+    if glob and maxiter > 0:
         sub = [free[i] for i in glob]
         if settings.box_share is not None:
             sub = box_around(sub, decode(free, x), settings.box_share)
@@ -1226,7 +1237,8 @@ def refine_settings(
     :data:`DIAGNOSIS_CYCLES` (``spent``: simulated cycles the rounds used,
     :func:`spent_cycles`); None for models of fewer than :data:`REFINE_MIN_PARAMS`
     continuous parameters or when fewer than :data:`REFINE_MIN_GENERATIONS` generations
-    fit the budget (long runs).
+    fit the budget (long runs); ``maxiter`` 0, the local search alone, when fewer than
+    :data:`REFINE_DE_GENERATIONS` do.
     """
     free = free_params(effects, fixed)
     if sum(p.choices is None for p in free) < REFINE_MIN_PARAMS:
@@ -1238,6 +1250,8 @@ def refine_settings(
     maxiter = min(REFINE_MAXITER, int(budget / cycles // population) - 1)
     if maxiter < REFINE_MIN_GENERATIONS:
         return None
+    if maxiter < REFINE_DE_GENERATIONS:
+        maxiter = 0  # the local search alone
     return replace(
         settings,
         max_population=REFINE_POPULATION,

@@ -25,6 +25,7 @@ import argparse
 import json
 import os
 import platform
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -32,6 +33,9 @@ from pathlib import Path
 from bouncelab.gap.blind import score_case
 from bouncelab.gap.diagnose import diagnose_run
 from bouncelab.rig import read_truth, run_rig
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_physics import machine_speed  # noqa: E402
 
 GOAL_S = 120.0
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,6 +83,7 @@ def main() -> None:
         "cpu_count": os.cpu_count(),
         "python": platform.python_version(),
         "machine": platform.machine(),
+        "machine_feedback_mflights_s": machine_speed(),
     }
     print(json.dumps(out, indent=1))
     path = ROOT / "benchmarks" / "results" / f"{name}.json"

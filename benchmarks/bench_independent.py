@@ -27,6 +27,7 @@ from pathlib import Path
 from bouncelab.gap.diagnose import diagnose_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_physics import machine_speed  # noqa: E402
 from independent_rig import make_case  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -180,6 +181,7 @@ def main() -> None:
             t2 = time.perf_counter()
             truth = json.loads(run_dir.with_name(name + ".truth.json").read_text())
             s = score(truth, diag) | {"generate_s": t1 - t0, "diagnose_s": t2 - t1}
+            s["machine_feedback_mflights_s"] = machine_speed()
             record["cases"][name] = s
             errs = ", ".join(f"{k} {100 * v:.1f} %" for k, v in s["param_rel_error"].items())
             print(

@@ -82,6 +82,25 @@ def kernel_rate(model: Model, gammas: np.ndarray, n_flights: int, repeat: int = 
     return max(kernel_rates(model, gammas, n_flights, repeat))
 
 
+def machine_speed(repeat: int = 3) -> float:
+    """This machine's speed for the diagnosis's timings: the armature (``feedback``)
+    kernel's best rate in millions of flights per second on one thread (100 Gamma values
+    over 1.1-8, 200 flights each; about a second). Why: the diagnosis's time is mostly
+    armature simulations, and the same code took 1.3 times longer on one session's
+    machine than on another's; a time recorded beside this rate can be compared across
+    machines (``feedback`` of ``physics.json`` is the same kernel on a larger workload).
+    """
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        m = Model.parse("feedback", MODELS["feedback"])
+        gammas = np.linspace(1.1, 8.0, 100)
+        kernel_rate(m, gammas[:4], 10, repeat=1)  # load from cache / compile
+        return round(kernel_rate(m, gammas, 200, repeat) / 1e6, 3)
+    finally:
+        numba.set_num_threads(threads)
+
+
 def compile_seconds() -> float:
     """Cold compile time: first simulate_grid call in a fresh process with an empty cache."""
     code = (

@@ -212,7 +212,7 @@ REFINE_MIN_GENERATIONS = 8
 #: section 4): on the blind refinements of 24-33 generations (the four seed-like cases
 #: and ``feedback_a``) it first did at generation 11, 12, 14, 23 and 26; on the
 #: independent ``vibration_27hz`` (9 generations, 479 evaluations of three ensembles,
-#: about a sixth of the run's time) never, and the local search gained 1.2 %.
+#: about 20 s on 2 cores) never, and the local search gained 1.2 %.
 REFINE_DE_GENERATIONS = 12
 
 #: The selected model is refined when it has at least this many continuous parameters:

@@ -88,7 +88,8 @@ def machine_speed(repeat: int = 3) -> float:
     over 1.1-8, 200 flights each; about a second). Why: the diagnosis's time is mostly
     armature simulations, and the same code took 1.3 times longer on one session's
     machine than on another's; a time recorded beside this rate can be compared across
-    machines (``feedback`` of ``physics.json`` is the same kernel on a larger workload).
+    machines (``feedback`` of ``physics.json`` is the same kernel on a larger workload,
+    on all of numba's threads).
     """
     threads = numba.get_num_threads()
     numba.set_num_threads(1)

@@ -174,6 +174,43 @@ def test_fit_in_an_evaluation_pool_equals_the_serial_fit(problem):
     assert pooled.model.params == serial.model.params
 
 
+@pytest.mark.parametrize("min_contact", [0.0, 0.01])
+def test_a_pool_compiles_the_kernels_with_the_types_of_an_evaluation(
+    problem, min_contact, monkeypatch
+):
+    """The workers' warm-up (:func:`_worker_compile`) calls each kernel with the argument
+    types of a real evaluation: otherwise numba would compile a second specialisation at
+    the first evaluation and the warm-up would only cost time."""
+    from dataclasses import replace
+
+    import numba
+
+    import bouncelab.gap.fit as fit
+    import bouncelab.physics.kernels as kernels
+
+    problem = replace(problem, min_contact=min_contact)
+    seen: dict[str, set] = {}
+
+    def recorder(name, kernel):
+        def call(*args):
+            seen.setdefault(name, set()).add(tuple(numba.typeof(a) for a in args))
+            return kernel(*args)
+
+        return call
+
+    for name in ("run_many", "close_contacts"):
+        monkeypatch.setattr(kernels, name, recorder(name, getattr(kernels, name)))
+    monkeypatch.setattr(fit, "ensemble_gaps", recorder("ensemble_gaps", fit.ensemble_gaps))
+    monkeypatch.setattr(fit, "_WORKER", {"problem": problem, "buffer": OutputBuffer()})
+    fit._worker_compile("simulation")
+    fit._worker_compile("gaps")
+    warmed = {k: set(v) for k, v in seen.items()}
+    step_gaps(problem, Model.parse("friction+restitution", {"mu": 0.2, "e": 0.45}))
+    expected = {"run_many", "ensemble_gaps"} | ({"close_contacts"} if min_contact else set())
+    assert set(warmed) == expected
+    assert seen == warmed  # the evaluation brought no new argument types
+
+
 def test_no_generations_is_the_local_search_alone(problem):
     """maxiter 0 (a refinement too short for its evolution): no global search, the
     Nelder-Mead search from ``base`` alone, at most local_evals per free parameter, and

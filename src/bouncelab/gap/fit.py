@@ -714,6 +714,13 @@ def _one_draw_gaps(
         buffer=buffer,
         min_contact=problem.min_contact,
     )
+    return _ensemble_min_gaps(problem, sim)
+
+
+def _ensemble_min_gaps(problem: Problem, sim: dict[str, np.ndarray]) -> np.ndarray:
+    """Per-step gap, shape (G,), of simulated flights (``sim`` as
+    :func:`bouncelab.physics.simulate.protocol_flight_times` returns them): the least over
+    the members (see :func:`step_gaps`)."""
     k = problem.kernel_inputs
     gaps = ensemble_gaps(
         sim["member"], k.protocol_step[sim["step"]], sim["T"], sim["settled"],
@@ -844,6 +851,29 @@ def _worker_start(problem: Problem) -> None:
     _WORKER.update(problem=problem, buffer=OutputBuffer())
 
 
+def _worker_compile(kernel: str) -> None:
+    """Compile (or load from numba's cache) one of the two kernels every evaluation runs,
+    ``"simulation"`` or ``"gaps"``, with the argument types of the worker's problem: a
+    one-cycle simulation, or the gaps of no flights."""
+    problem = _WORKER["problem"]
+    if kernel == "simulation":
+        protocol_flight_times(
+            Model.parse("ideal"),
+            problem.protocol["gamma"].to_numpy()[:1],
+            np.ones(1, dtype=np.int64),
+            settle_cycles=0,
+            min_contact=problem.min_contact,
+        )
+    else:
+        empty = {
+            "member": np.zeros(0, dtype=np.int64),
+            "step": np.zeros(0, dtype=np.int64),
+            "T": np.zeros(0),
+            "settled": np.zeros(0, dtype=bool),
+        }
+        _ensemble_min_gaps(problem, empty)
+
+
 def _worker_gaps(
     model_name: str,
     params: dict,
@@ -884,6 +914,11 @@ class EvaluationPool:
             initializer=_worker_start,
             initargs=(problem,),
         )
+        # numba compiles the kernels at their first use (then caches them): here one in
+        # each worker at once while the caller waits, not one after the other in the
+        # caller (a first diagnosis after an install: about 16 of its 46 s of compiling)
+        for task in [self._executor.submit(_worker_compile, k) for k in ("simulation", "gaps")]:
+            task.result()
 
     def serves(self, problem: Problem) -> bool:
         """Whether this pool's workers hold ``problem`` (or the same run and data with

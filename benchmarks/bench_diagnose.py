@@ -13,10 +13,14 @@ temporary folder) and records the parameter errors against its ground truth:
 the shipped run), the length where the 2-minute goal is not met (docs/diagnosis.md,
 section 5).
 
+``--cold-cache`` times the first diagnosis after an install or a source change: the script
+runs itself again with numba's cache in a new, empty folder (``NUMBA_CACHE_DIR``), so
+every kernel is compiled on the way, as on a fresh checkout (the workers too).
+
 Measures, prints and writes ``benchmarks/results/diagnose.json`` (``diagnose_<config
-name>.json`` with ``--rig-config``).
+name>.json`` with ``--rig-config``; ``_cold_cache`` appended with ``--cold-cache``).
 Run: ``python benchmarks/bench_diagnose.py [--run raw/sweep_g0-8 | --rig-config CONFIG]
-[--workers 2]``.
+[--workers 2] [--cold-cache]``.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import argparse
 import json
 import os
 import platform
+import subprocess
 import sys
 import tempfile
 import time
@@ -38,6 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_physics import machine_speed  # noqa: E402
 
 GOAL_S = 120.0
+COLD_MARK = "BOUNCELAB_BENCH_COLD_CACHE"
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -46,7 +52,14 @@ def main() -> None:
     p.add_argument("--run", default=str(ROOT / "raw" / "sweep_g0-8"))
     p.add_argument("--rig-config", default=None, help="rig config of a virtual run to time")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--cold-cache", action="store_true", help="time it with numba's cache empty")
     args = p.parse_args()
+    if args.cold_cache and os.environ.get(COLD_MARK) is None:
+        # numba reads its cache folder when it is imported, which this script already did:
+        # the timed run is a child started with the empty folder in its environment
+        with tempfile.TemporaryDirectory() as cache:
+            env = {**os.environ, "NUMBA_CACHE_DIR": cache, COLD_MARK: "1"}
+            sys.exit(subprocess.run([sys.executable, *sys.argv], env=env).returncode)
     errors, name = None, "diagnose"
     if args.rig_config is None:
         t0 = time.perf_counter()
@@ -84,7 +97,10 @@ def main() -> None:
         "python": platform.python_version(),
         "machine": platform.machine(),
         "machine_feedback_mflights_s": machine_speed(),
+        "numba_cache": "empty" if args.cold_cache else "as found",
     }
+    if args.cold_cache:
+        name += "_cold_cache"
     print(json.dumps(out, indent=1))
     path = ROOT / "benchmarks" / "results" / f"{name}.json"
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -27,5 +27,10 @@ class BouncelabError(Exception):
         self.problem = " ".join(str(problem).split())  # always one line
         super().__init__(str(self))
 
+    def __reduce__(self):
+        # rebuilt from both arguments: an error raised in a worker process (the
+        # diagnosis's evaluation pool) must reach the caller as itself, not break the pool
+        return type(self), (self.path, self.problem)
+
     def __str__(self) -> str:
         return f"{self.path}: {self.problem}" if self.path is not None else self.problem

@@ -211,6 +211,21 @@ def test_a_pool_compiles_the_kernels_with_the_types_of_an_evaluation(
     assert seen == warmed  # the evaluation brought no new argument types
 
 
+def test_a_pool_whose_workers_fail_to_start_is_closed(problem):
+    """An error in the workers' warm-up (here a problem with no protocol steps) reaches the
+    caller, and the pool's processes are gone: no caller holds the pool to close it."""
+    import multiprocessing
+    from dataclasses import replace
+
+    from bouncelab.errors import BouncelabError
+
+    before = set(multiprocessing.active_children())
+    broken = replace(problem, protocol=problem.protocol.iloc[:0])
+    with pytest.raises(BouncelabError, match="gamma must be a non-empty"):
+        EvaluationPool(broken, 2)
+    assert set(multiprocessing.active_children()) <= before
+
+
 def test_no_generations_is_the_local_search_alone(problem):
     """maxiter 0 (a refinement too short for its evolution): no global search, the
     Nelder-Mead search from ``base`` alone, at most local_evals per free parameter, and

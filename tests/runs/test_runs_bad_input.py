@@ -400,3 +400,19 @@ def test_error_through_a_real_process(make_run, tmp_path, name):
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("error: ")
     assert expected_file in proc.stderr and "Traceback" not in proc.stderr
     assert tree_digest(run_dir) == before
+
+
+@pytest.mark.parametrize("path", ["raw/run_a/run.yaml", None])
+def test_an_error_survives_pickling_as_itself(path):
+    """A worker process (the diagnosis's evaluation pool) sends its errors pickled: the
+    caller must get the same file and problem back, not a broken pool."""
+    import pickle
+    from pathlib import Path
+
+    from bouncelab.errors import BouncelabError
+
+    err = pickle.loads(pickle.dumps(BouncelabError(path, "no  contacts\nfound")))
+    assert isinstance(err, BouncelabError)
+    assert str(err) == (f"{path}: no contacts found" if path else "no contacts found")
+    assert err.path == (None if path is None else Path(path))
+    assert err.problem == "no contacts found"

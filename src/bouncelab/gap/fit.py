@@ -917,8 +917,12 @@ class EvaluationPool:
         # numba compiles the kernels at their first use (then caches them): here one in
         # each worker at once while the caller waits, not one after the other in the
         # caller (a first diagnosis after an install: about 16 of its 46 s of compiling)
-        for task in [self._executor.submit(_worker_compile, k) for k in ("simulation", "gaps")]:
-            task.result()
+        try:
+            for task in [self._executor.submit(_worker_compile, k) for k in ("simulation", "gaps")]:
+                task.result()
+        except BaseException:
+            self.close()  # no caller holds the pool yet to close it
+            raise
 
     def serves(self, problem: Problem) -> bool:
         """Whether this pool's workers hold ``problem`` (or the same run and data with

@@ -3,6 +3,8 @@ plain route (``protocol.simulate_run`` per member, ``gap.distances.gap_table``).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from diag_synth import duration_s, pseudo_flights, write_run
@@ -97,8 +99,6 @@ def test_protocol_arrays_match_simulate_protocol():
 def test_several_draws_are_the_mean_of_each_draws_capped_gaps(problem):
     """Reference: the mean of capped per-draw gaps, each draw computed alone (one
     ensemble, ``n_draws`` 1, shifted by k / n), as ``step_gaps`` documents: exactly."""
-    from dataclasses import replace
-
     model = Model.parse("friction+restitution", {"mu": 0.15, "e": 0.45})
     three = replace(problem, n_draws=3)
     alone = [step_gaps(replace(problem, n_draws=1), model, shift=k / 3) for k in range(3)]
@@ -181,8 +181,6 @@ def test_a_pool_compiles_the_kernels_with_the_types_of_an_evaluation(
     """The workers' warm-up (:func:`_worker_compile`) calls each kernel with the argument
     types of a real evaluation: otherwise numba would compile a second specialisation at
     the first evaluation and the warm-up would only cost time."""
-    from dataclasses import replace
-
     import numba
 
     import bouncelab.gap.fit as fit
@@ -215,7 +213,6 @@ def test_a_pool_whose_workers_fail_to_start_is_closed(problem):
     """An error in the workers' warm-up (here a problem with no protocol steps) reaches the
     caller, and the pool's processes are gone: no caller holds the pool to close it."""
     import multiprocessing
-    from dataclasses import replace
 
     from bouncelab.errors import BouncelabError
 
@@ -248,8 +245,6 @@ def test_no_generations_is_the_local_search_alone(problem):
 def test_several_draws_average_the_capped_gaps_of_shifted_ensembles(problem):
     """n_draws = 3 gives the mean over the ensembles shifted by 0, 1/3 and 2/3 of the
     member spacing of each one's capped gaps (the refinement's expected gap)."""
-    from dataclasses import replace
-
     model = Model.parse("restitution", {"e": 0.5})
     three = replace(problem, n_draws=3)
     draws = [problem.clipped(step_gaps(problem, model, shift=k / 3)) for k in range(3)]
@@ -264,8 +259,6 @@ def test_several_draws_average_the_capped_gaps_of_shifted_ensembles(problem):
 def test_a_pool_evaluates_other_draws_of_its_problem(problem):
     """The refinement reuses the selection's pool: a task carries its n_draws, and the
     workers' numbers equal the in-process ones."""
-    from dataclasses import replace
-
     three = replace(problem, n_draws=3)
     params = [{"e": 0.3}, {"e": 0.5}]
     with EvaluationPool(problem, 2) as pool:
@@ -309,8 +302,6 @@ def test_recheck_best_undoes_a_lucky_draw(problem):
     best of the pooled draws: a far-off point whose recorded gaps were made to look
     lucky (half the truth's) loses to the truth once its fresh draws are counted; the
     pool gives the same result as the process itself."""
-    from dataclasses import replace
-
     from bouncelab.gap.fit import FitResult, free_params, recheck_best
 
     two = replace(problem, n_draws=2)
@@ -367,8 +358,6 @@ def test_a_finite_contact_in_the_data_is_read_and_put_in_the_model(tmp_path):
     2 kHz placeholder): the problem reads the contact time from the data's contacts
     (within 5 %), and the true model, read the same way, is closer to the data than the
     model with instantaneous contacts (the shift of every bounce's flight by 0.28 rad)."""
-    from dataclasses import replace
-
     from bouncelab.protocol import simulate_run
 
     run_dir = write_run(tmp_path)

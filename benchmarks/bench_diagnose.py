@@ -86,6 +86,8 @@ def main() -> None:
         "workers": args.workers,
         "n_steps": result["design"]["n_steps"],
         "n_evals_round1_and_accepted": n_evals,
+        "flights": result["design"]["work"]["flights"],
+        "us_per_flight": round(total_s / max(result["design"]["work"]["flights"], 1) * 1e6, 3),
         "selected": result["selected"],
         "final_model": result["final_model"],
         "baseline_gap": result["baseline"]["gap"],

@@ -27,6 +27,7 @@ from pathlib import Path
 from bouncelab.gap.diagnose import diagnose_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_diagnose import GOAL_S  # noqa: E402
 from bench_physics import machine_speed  # noqa: E402
 from independent_rig import make_case  # noqa: E402
 
@@ -161,6 +162,8 @@ def score(truth: dict, diag: dict) -> dict:
         "final_floors": diag["final_gap"] / diag["noise_floor"],
         "min_contact_s": diag["design"].get("min_contact_s"),
         "fitted": fitted,
+        # the diagnosis's work: flights its kernels simulated (time per flight: the machine)
+        "flights": diag["design"]["work"]["flights"],
     }
 
 
@@ -202,6 +205,7 @@ def main() -> None:
         "params_within_15pct": sum(v <= 0.15 for c in cases for v in c["param_rel_error"].values()),
         "params": sum(len(c["param_rel_error"]) for c in cases),
         "max_diagnose_s": max(c["diagnose_s"] for c in cases),
+        "over_goal_s": sorted(n for n, c in record["cases"].items() if c["diagnose_s"] > GOAL_S),
     }
     record["machine"] = {"cpus": platform.machine(), "python": platform.python_version()}
     OUT.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")

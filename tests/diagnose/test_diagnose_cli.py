@@ -92,6 +92,9 @@ def test_cli_writes_contract_json(null_case, tmp_path, monkeypatch):
     r = json.loads(out.read_text())
     assert r["run"] == "pseudo" and r["selected"] == [] and r["unexplained"] is False
     assert len(r["candidates"]) == 5
+    # the work reported counts every fit: at least the rounds' (the baseline's besides)
+    work = r["design"]["work"]["flights"]
+    assert work > sum(c["flights"] for tried in r["rounds"] for c in tried) > 0
     assert _tree_hash(run_dir) == before
 
 

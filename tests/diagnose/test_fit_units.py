@@ -4,6 +4,7 @@ warnings, calibration input. Each states its reference."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -256,7 +257,7 @@ def table_fit_many(gaps: dict, params: dict, names: list | None = None):
     floors: an addition that gains nothing) and ``params`` (default none), recording the
     model names in ``names`` when given."""
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         if names is not None:
             names.extend(name for _problem, name, *_rest in jobs)
         return [
@@ -272,7 +273,7 @@ def armature_table_fit_many(table: dict, calls: list):
     params); default 9 floors and none), gives armature models the job's ``ride_load``
     (default 1) and records the model names in ``calls``."""
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
             calls.append(name)
@@ -301,7 +302,7 @@ def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     }
     calls, continued = [], {}
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, base, _fixed, search, _settings, _seed, *more in jobs:
             calls.append((name, search))
@@ -336,7 +337,7 @@ def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
     1.9): friction is dropped, and restitution takes the local refit without it (1.95)."""
     from bouncelab.gap import select
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, base, _fixed, search, settings, _seed, *_more in jobs:
             if search == ():
@@ -398,7 +399,7 @@ def test_later_rounds_search_every_armature_choice_but_keep_the_harmonics_k(
     before session 16 in every round, only round 1's choice (loaded) is searched."""
     from bouncelab.gap import select
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
             calls.append((name, dict(fixed)))
@@ -460,7 +461,7 @@ def test_the_last_round_skips_the_other_armature_only_when_the_kept_one_settles_
 
     calls = []
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, _base, fixed, search, _settings, _seed, *_more in jobs:
             calls.append((name, dict(fixed), search))
@@ -712,7 +713,7 @@ def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_l
     calls = []
     by_seed = {0: first_seed_gap, select.SEED_STRIDE: 1.2, 2 * select.SEED_STRIDE: 1.6}
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
             calls.append((name, seed))
@@ -741,6 +742,36 @@ def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_l
     assert [s for n, s in calls if n in ("feedback", "restitution+gamma_scale")] == [0, 0, 0]
 
 
+def test_the_selection_counts_the_flights_of_every_fit_it_made(monkeypatch):
+    """Reference: the scripted selection above (first seed 1.7 floors), every fit
+    costing 100 flights: the work reported is 100 per fit made, the extra armature seeds
+    and the other ride_load's searches included though only the best is kept."""
+    from bouncelab.gap import select
+
+    calls = []
+    by_seed = {0: 1.7, select.SEED_STRIDE: 1.2, 2 * select.SEED_STRIDE: 1.6}
+
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
+            calls.append(name)
+            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
+            if name == "restitution+feedback":
+                fit = scripted_fit(name, {**params, "zeta": seed}, by_seed[seed])
+            elif name == "restitution":
+                fit = scripted_fit(name, {}, 5.0)
+            else:
+                fit = scripted_fit(name, params if "feedback" in name else {}, 9.0)
+            out.append(replace(fit, flights=100))
+        if work is not None:
+            work.add(out)
+        return out
+
+    sel = armature_last_round(monkeypatch, fake_fit_many)
+    assert calls.count("restitution+feedback") == 5  # 3 seeds, 2 searches of the other choice
+    assert sel["work"] == {"flights": 100 * len(calls)}
+
+
 @pytest.mark.parametrize("trail, searched_again", [(0.2, True), (0.3, False)])
 def test_the_last_round_searches_the_armature_again_only_within_the_tie_of_the_best(
     monkeypatch, trail, searched_again
@@ -755,7 +786,7 @@ def test_the_last_round_searches_the_armature_again_only_within_the_tie_of_the_b
 
     calls = []
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
             calls.append((name, seed))
@@ -799,7 +830,7 @@ def test_the_selection_goes_on_within_the_floor_while_the_phases_show_the_model_
         "friction+restitution+feedback": 1.2,
     }
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, _base, fixed, _search, _settings, _seed, *_more in jobs:
             params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
@@ -842,7 +873,7 @@ def runner_up_fit_many(calls: list, table: dict, joint: str, gap_from):
     armature's :data:`_ARMATURE` values; the ``joint`` fit scores ``gap_from(start)`` at
     its start with mu (0 when absent). Every job's ``(name, start)`` goes to ``calls``."""
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, base, fixed, _search, _settings, _seed, *_more in jobs:
             calls.append((name, dict(base)))
@@ -954,7 +985,7 @@ def test_an_armature_taken_alone_is_checked_against_every_pair(monkeypatch, pair
 
     calls = []
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, base, _fixed, _search, _settings, _seed, *_more in jobs:
             calls.append((name, dict(base)))
@@ -1123,7 +1154,7 @@ def test_the_box_fit_is_kept_only_when_it_does_better_on_fresh_ensembles(
     fit = scripted_fit("friction+harmonic", {"mu": 0.28, "k": 2.0, "a": 0.05, "psi": 1.7}, 2.2)
     jobs_seen = []
 
-    def fake_fit_many(jobs, pool=None, progress=None):
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
         jobs_seen.extend(jobs)
         (_problem, name, base, _fixed, _search, _settings, _seed) = jobs[0]
         return [scripted_fit(name, {**base, "mu": 0.2}, 0.8)]

@@ -11,14 +11,18 @@ from diag_synth import duration_s, pseudo_flights, write_run
 
 from bouncelab.gap.distances import gap_table
 from bouncelab.gap.fit import (
+    CHATTER_SAMPLES,
+    MEMBER_SPREAD,
     EvaluationPool,
     FitSettings,
     align_steps,
     best_member_simulation,
+    counted_step_gaps,
     fit_model,
     make_problem,
     member_model,
     member_offsets,
+    resolution_T,
     simulate,
     step_gaps,
 )
@@ -371,3 +375,34 @@ def test_a_finite_contact_in_the_data_is_read_and_put_in_the_model(tmp_path):
     with_contact = problem.mean(step_gaps(problem, truth), problem.fit)
     instantaneous = problem.mean(step_gaps(replace(problem, min_contact=0.0), truth), problem.fit)
     assert with_contact < 0.5 * instantaneous, (with_contact, instantaneous)
+
+
+def test_an_evaluation_counts_the_flights_its_kernel_simulated(problem):
+    """Reference: the flights of the same ensembles from ``protocol_flight_times`` with no
+    contact rule (every kernel row: the work a diagnosis reports), one
+    draw and three; the gaps are step_gaps' and the counts the same in a pool."""
+    model = MODELS[1]
+    gaps, flights = counted_step_gaps(problem, model)
+    np.testing.assert_array_equal(gaps, step_gaps(problem, model))
+
+    def kernel_flights(shift):
+        sim = protocol_flight_times(
+            model,
+            problem.protocol["gamma"].to_numpy(),
+            problem.protocol["cycles"].to_numpy(),
+            settle_cycles=int(problem.run.settle_cycles),
+            gamma_factors=1.0 + member_offsets(problem.n_members) + shift * MEMBER_SPREAD,
+            chatter_eps=resolution_T(problem.run, CHATTER_SAMPLES),
+        )
+        return len(sim["T"])
+
+    assert flights == kernel_flights(0.0) > 0
+    three = replace(problem, n_draws=3)
+    assert counted_step_gaps(three, model)[1] == sum(kernel_flights(k / 3) for k in range(3))
+    buffer = OutputBuffer()
+    counted_step_gaps(problem, model, buffer)
+    counted_step_gaps(problem, model, buffer)
+    assert buffer.flights == 2 * flights
+    with EvaluationPool(problem, 2) as pool:
+        pooled = pool.counted_gaps(model.name, [dict(model.params)] * 2)
+    assert [n for _g, n in pooled] == [flights, flights]

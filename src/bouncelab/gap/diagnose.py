@@ -476,6 +476,7 @@ def diagnose_flights(
                     "params": _params(fit.model),
                     "gap": heldout_gap(fit, problem),
                     "n_evals": fit.n_evals,
+                    "flights": fit.flights,
                 }
                 for eff, fit in tried
             ]
@@ -491,6 +492,8 @@ def diagnose_flights(
             **_design(problem, fit_settings, select_settings, baseline, seed, fixed),
             "refine": _refine_design(sel["refined"]),
             "box": sel["box"],
+            # flights the kernels simulated for every fit: the diagnosis's work
+            "work": sel["work"],
         },
         "profile": {
             "step": [int(s) for s in problem.steps["step"]],

@@ -690,13 +690,25 @@ def step_gaps(
     by ``shift + k / n_draws``) of the capped gaps (:meth:`Problem.clipped`): the expected
     gap rather than one draw of the lottery.
     """
+    return counted_step_gaps(problem, model, buffer, shift)[0]
+
+
+def counted_step_gaps(
+    problem: Problem, model: Model, buffer: OutputBuffer | None = None, shift: float = 0.0
+) -> tuple[np.ndarray, int]:
+    """:func:`step_gaps` and the flights the kernel simulated for them (every member and
+    draw, chatter included; :attr:`OutputBuffer.flights`): the evaluation's work."""
+    buffer = buffer if buffer is not None else OutputBuffer()
+    before = buffer.flights
     if problem.n_draws > 1:
         draws = [
             problem.clipped(_one_draw_gaps(problem, model, buffer, shift + k / problem.n_draws))
             for k in range(problem.n_draws)
         ]
-        return np.mean(draws, axis=0)
-    return _one_draw_gaps(problem, model, buffer, shift)
+        gaps = np.mean(draws, axis=0)
+    else:
+        gaps = _one_draw_gaps(problem, model, buffer, shift)
+    return gaps, buffer.flights - before
 
 
 def _one_draw_gaps(
@@ -825,6 +837,8 @@ class FitResult:
     cloud_x : ndarray (n_evals, len(free)), every evaluated optimiser vector.
     cloud_gaps : ndarray (n_evals, G), the per-step gaps of each evaluation.
     n_evals, seconds : cost of the fit.
+    flights : flights the kernel simulated for the fit's evaluations (every member and
+        draw, chatter included): its work, deterministic.
     """
 
     model: Model
@@ -836,6 +850,7 @@ class FitResult:
     n_evals: int
     seconds: float
     extra: dict = field(default_factory=dict)
+    flights: int = 0
 
 
 # The problem and output buffer of an EvaluationPool's worker process, set once when it
@@ -880,13 +895,13 @@ def _worker_gaps(
     n_draws: int = 1,
     shift: float = 0.0,
     max_gamma: float | None = None,
-) -> np.ndarray:
+) -> tuple[np.ndarray, int]:
     problem = _WORKER["problem"]
     if max_gamma is not None:
         problem = problem.restricted(max_gamma)
     if problem.n_draws != n_draws:
         problem = replace(problem, n_draws=n_draws)
-    return step_gaps(problem, Model.parse(model_name, params), _WORKER["buffer"], shift)
+    return counted_step_gaps(problem, Model.parse(model_name, params), _WORKER["buffer"], shift)
 
 
 class EvaluationPool:
@@ -940,6 +955,17 @@ class EvaluationPool:
         """Per-step gaps (each ndarray (G,), rad) of ``model_name`` at each parameter dict,
         averaged over ``n_draws`` ensembles shifted by ``shift`` (:func:`step_gaps`), on
         the pool's problem or its :meth:`Problem.restricted` to ``max_gamma``."""
+        return [g for g, _ in self.counted_gaps(model_name, params, n_draws, shift, max_gamma)]
+
+    def counted_gaps(
+        self,
+        model_name: str,
+        params: list[dict],
+        n_draws: int = 1,
+        shift: float = 0.0,
+        max_gamma: float | None = None,
+    ) -> list[tuple[np.ndarray, int]]:
+        """:meth:`gaps`, each with the flights simulated for it (:func:`counted_step_gaps`)."""
         n = len(params)
         return list(
             self._executor.map(
@@ -988,6 +1014,7 @@ class _Evaluator:
         self.pool = pool
         self.xs: list[np.ndarray] = []
         self.gaps: list[np.ndarray] = []
+        self.flights = 0  # simulated by this evaluator (counted_step_gaps)
         self._cache: dict[tuple, float] = {}
         self._buffer = OutputBuffer()
 
@@ -1006,13 +1033,16 @@ class _Evaluator:
                 todo[key] = params
         full = [{**self.base, **p} for p in todo.values()]
         if self.pool is not None and len(full) > 1:
-            gaps = self.pool.gaps(
+            counted = self.pool.counted_gaps(
                 self.model_name, full, self.problem.n_draws, max_gamma=self.max_gamma
             )
         else:
-            gaps = [
-                step_gaps(self.problem, Model.parse(self.model_name, p), self._buffer) for p in full
+            counted = [
+                counted_step_gaps(self.problem, Model.parse(self.model_name, p), self._buffer)
+                for p in full
             ]
+        gaps = [g for g, _ in counted]
+        self.flights += sum(n for _, n in counted)
         for (key, params), g in zip(todo.items(), gaps, strict=True):
             self.xs.append(encode(self.free, params))
             self.gaps.append(g)
@@ -1132,6 +1162,7 @@ def fit_model(
         n_evals=len(ev.xs),
         seconds=time.perf_counter() - t0,
         extra=extra,
+        flights=ev.flights + extra.get("continuation", {}).get("flights", 0),
     )
 
 
@@ -1172,6 +1203,7 @@ def _low_gamma_search(
         "params": decode(free, lift(z)),
         "n_evals": len(low.xs),
         "cycles": len(low.xs) * low.problem.n_draws * problem_cycles(low.problem),
+        "flights": low.flights,
     }
 
 
@@ -1320,10 +1352,14 @@ def recheck_best(
     params = [{**fit.model.params, **decode(fit.free, fit.cloud_x[i])} for i in best]
     shift = 0.5 / max(problem.n_draws, 1)
     if pool is not None and len(params) > 1:
-        fresh = pool.gaps(fit.model.name, params, problem.n_draws, shift)
+        counted = pool.counted_gaps(fit.model.name, params, problem.n_draws, shift)
     else:
         buffer = OutputBuffer()
-        fresh = [step_gaps(problem, Model.parse(fit.model.name, p), buffer, shift) for p in params]
+        counted = [
+            counted_step_gaps(problem, Model.parse(fit.model.name, p), buffer, shift)
+            for p in params
+        ]
+    fresh = [g for g, _ in counted]
     pooled = [
         (problem.clipped(fit.cloud_gaps[i]) + problem.clipped(g)) / 2.0
         for i, g in zip(best, fresh, strict=True)
@@ -1336,6 +1372,7 @@ def recheck_best(
         objective=scores[j],
         gaps=pooled[j],
         n_evals=fit.n_evals + len(params),
+        flights=fit.flights + sum(n for _, n in counted),
     )
 
 

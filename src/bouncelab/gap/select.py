@@ -196,12 +196,29 @@ def evaluation_pool(problem: Problem, workers: int):
     return EvaluationPool(problem, workers)
 
 
-def fit_many(jobs: list[tuple], pool=None, progress: bool | None = None) -> list[FitResult]:
+@dataclass
+class WorkTally:
+    """Flights one diagnosis's fits have simulated (:attr:`FitResult.flights`, every fit
+    counted once, kept or not): the diagnosis's work, deterministic, reported as
+    ``design.work``. Why: a diagnosis's time follows the flights its kernels simulate
+    (chatter makes several a cycle), not its cycles (docs/diagnosis.md section 4,
+    session 30)."""
+
+    flights: int = 0
+
+    def add(self, fits) -> None:
+        self.flights += sum(int(f.flights) for f in fits)
+
+
+def fit_many(
+    jobs: list[tuple], pool=None, progress: bool | None = None, work: WorkTally | None = None
+) -> list[FitResult]:
     """Run :func:`fit_model` jobs (argument tuples ``(problem, model_name, base, fixed,
     search, settings, seed)``, optionally followed by ``continuation``) one after
     another, each evaluating its populations in ``pool`` when given. Results come back
     in job order and do not depend on the pool. A progress bar is shown on a terminal
-    (``progress=None``: when stderr is a TTY).
+    (``progress=None``: when stderr is a TTY). ``work``: the tally their flights are
+    added to.
     """
     from tqdm import tqdm
 
@@ -226,6 +243,8 @@ def fit_many(jobs: list[tuple], pool=None, progress: bool | None = None) -> list
             )
             bar.set_postfix_str(name, refresh=False)
             bar.update()
+    if work is not None:
+        work.add(results)
     return results
 
 
@@ -358,7 +377,7 @@ def _worth_searching_again(tried, problem: Problem, floor: float, settings) -> b
     )
 
 
-def _armature_seeds(tried, job, pool, progress, floor, settings):
+def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally):
     """``tried`` of the last round with the armature's joint fit run again with
     :data:`ARMATURE_SEEDS` - 1 more optimiser seeds (``seed + j * SEED_STRIDE``), the
     least fit-step objective kept (:func:`_best_of`). ``job``: the round's
@@ -375,12 +394,12 @@ def _armature_seeds(tried, job, pool, progress, floor, settings):
         return tried
     mine = dict(tried)
     jobs = [(*job[:6], seed + j * SEED_STRIDE, *job[7:]) for j in range(1, ARMATURE_SEEDS)]
-    fits = [mine["feedback"], *fit_many(jobs, pool, progress)]
+    fits = [mine["feedback"], *fit_many(jobs, pool, progress, work)]
     best = _best_of("feedback", ["feedback"] * len(fits), fits)
     return [(e, best if e == "feedback" else f) for e, f in tried]
 
 
-def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
+def _armature_again(tried, kept: float, job, pool, progress, floor, settings, work: WorkTally):
     """``tried`` of the last round the selection has room for (``max_effects``), with the
     armature searched again with its other ``ride_load`` choices and chosen by
     :func:`armature_choice`. ``job``: ``(problem, start, fixed, fit settings, seed)``.
@@ -425,7 +444,7 @@ def _armature_again(tried, kept: float, job, pool, progress, floor, settings):
         for v in others
         for search in (None, own)
     ]
-    fits = fit_many(jobs, pool, progress)
+    fits = fit_many(jobs, pool, progress, work)
     loads = {kept: mine["feedback"]}
     for i, v in enumerate(others):  # per choice, the better of its two searches
         loads[v] = _best_of("feedback", ["feedback", "feedback"], fits[2 * i : 2 * i + 2])
@@ -549,6 +568,7 @@ def box_refinement(
     seed: int,
     pool=None,
     progress: bool | None = None,
+    work: WorkTally | None = None,
 ) -> tuple[FitResult, dict]:
     """The selected model searched again in a box around ``fit``'s values
     (:func:`bouncelab.gap.fit.box_around`), its best evaluations rechecked on fresh
@@ -588,8 +608,12 @@ def box_refinement(
           settings, seed)],
         pool,
         progress,
+        work,
     )  # fmt: skip
+    searched = boxed
     boxed = recheck_best(boxed, problem, RECHECK_TOP, pool)
+    if work is not None:
+        work.flights += boxed.flights - searched.flights
     before = float(fresh_objectives(fit.model, problem).mean())
     after = float(fresh_objectives(boxed.model, problem).mean())
     info = {
@@ -601,14 +625,16 @@ def box_refinement(
     return (boxed if after < before else fit), info
 
 
-def _without(problem, fit: FitResult, effect: str, fixed, fit_settings, seed, pool) -> FitResult:
+def _without(
+    problem, fit: FitResult, effect: str, fixed, fit_settings, seed, pool, work=None
+) -> FitResult:
     """``fit``'s model without the inert ``effect`` (:func:`is_inert`), its other
     parameters refined locally from ``fit``'s values (no global search)."""
     effects = [e for e in fit.model.effects if e != effect]
     own = set(EFFECTS[effect])
     base = {k: v for k, v in fit.model.params.items() if k not in own}
     (refit,) = fit_many(
-        [(problem, model_name(effects), base, fixed, (), fit_settings, seed)], pool, False
+        [(problem, model_name(effects), base, fixed, (), fit_settings, seed)], pool, False, work
     )
     return refit
 
@@ -688,17 +714,22 @@ def forward_select(
     :func:`bouncelab.gap.fit.refine_settings` allows), ``final`` (FitResult), ``stop``
     (why it stopped), ``final_problem`` (the problem of the final fit: ``problem`` with
     ``n_draws`` of the refinement, or ``problem`` itself), ``refined`` (the refinement's
-    settings, or None) and ``went_on`` (the reasons of ``unsettled`` that let the
-    selection go on past the floor, one per round).
+    settings, or None), ``went_on`` (the reasons of ``unsettled`` that let the
+    selection go on past the floor, one per round) and ``work`` (``flights``: what
+    every fit simulated, :class:`WorkTally`).
     """
     fit_settings = fit_settings or FitSettings()
     settings = settings or SelectSettings()
     fixed = dict(fixed or {})
     base_model = Model.parse(baseline)
     start = {**(base_params or {})}
+    work = WorkTally()
     with evaluation_pool(problem, workers) as pool:
         (base_fit,) = fit_many(
-            [(problem, base_model.name, start, fixed, None, fit_settings, seed)], None, progress
+            [(problem, base_model.name, start, fixed, None, fit_settings, seed)],
+            None,
+            progress,
+            work,
         )
         current = base_fit
         effects = list(base_model.effects)
@@ -728,6 +759,7 @@ def forward_select(
                 accepted, pair_check, pair_fits = _pair_for_armature(
                     rounds, accepted, pair_job, pool, progress, floor, settings
                 )
+                work.add(pair_fits)
                 if pair_check is not None and "replaced_by" in pair_check:
                     effects = [*base_model.effects, *pair_check["replaced_by"]]
                     current = accepted[-1][1]
@@ -762,17 +794,17 @@ def forward_select(
                         (problem, name, start, {**fixed, **extra}, None, fit_settings, seed,
                          cont)
                     )  # fmt: skip
-            fits = fit_many(jobs, pool, progress)
+            fits = fit_many(jobs, pool, progress, work)
             tried = [(eff, _best_of(eff, owners, fits)) for eff in todo]
             if last and rounds:
                 tried = _armature_seeds(
                     tried, jobs[owners.index("feedback")] if "feedback" in owners else None,
-                    pool, progress, floor, settings,
+                    pool, progress, floor, settings, work,
                 )  # fmt: skip
             if last and "ride_load" in round1 and "ride_load" not in fixed:
                 tried = _armature_again(
                     tried, round1["ride_load"], (problem, prev, fixed, fit_settings, seed),
-                    pool, progress, floor, settings,
+                    pool, progress, floor, settings, work,
                 )  # fmt: skip
             rounds.append(tried)
             if within and shows_more(current.model):
@@ -785,7 +817,7 @@ def forward_select(
             no_gain = "within_floor" if strict else "no_improvement"
             for e, f in tried:
                 if accepted and is_inert(e, f.model.params):
-                    refit = _without(problem, f, e, fixed, fit_settings, seed, pool)
+                    refit = _without(problem, f, e, fixed, fit_settings, seed, pool, work)
                     if heldout_gap(refit, problem) < heldout_gap(current, problem):
                         current = _pooled_cloud(refit, current)  # the effects taken, better fitted
                         accepted[-1] = (accepted[-1][0], current)
@@ -808,6 +840,7 @@ def forward_select(
             accepted, pair_check, pair_fits = _pair_for_armature(
                 rounds, accepted, pair_job, pool, progress, floor, settings
             )
+            work.add(pair_fits)
             if pair_check is not None and "replaced_by" in pair_check:
                 current = accepted[-1][1]
         final_problem, refined = problem, None
@@ -825,14 +858,19 @@ def forward_select(
                   None, refined, seed)],
                 pool,
                 progress,
+                work,
             )  # fmt: skip
+            searched = current
             current = recheck_best(current, final_problem, RECHECK_TOP, pool)
+            work.flights += current.flights - searched.flights
             accepted[-1] = (accepted[-1][0], current)
             if is_inert(accepted[-1][0], current.model.params):
                 # the refinement took the last effect to its null value: not an effect
                 eff = accepted.pop()[0]
                 if accepted:
-                    current = _without(final_problem, current, eff, fixed, fit_settings, seed, pool)
+                    current = _without(
+                        final_problem, current, eff, fixed, fit_settings, seed, pool, work
+                    )
                     accepted[-1] = (accepted[-1][0], current)
                 else:
                     current, final_problem, refined = base_fit, problem, None
@@ -845,7 +883,7 @@ def forward_select(
             and heldout_gap(current, final_problem) > settings.box_ratio * floor
         ):
             current, box = box_refinement(
-                current, problem, fixed, fit_settings, seed, pool, progress
+                current, problem, fixed, fit_settings, seed, pool, progress, work
             )
             if box["kept"]:
                 accepted[-1] = (accepted[-1][0], current)
@@ -859,7 +897,9 @@ def forward_select(
             if lo - tol <= null <= hi + tol:
                 weak = {"effect": eff, "param": name, "interval": [float(lo), float(hi)]}
                 accepted.pop()
-                current = _without(final_problem, current, eff, fixed, fit_settings, seed, pool)
+                current = _without(
+                    final_problem, current, eff, fixed, fit_settings, seed, pool, work
+                )
                 accepted[-1] = (accepted[-1][0], current)
     return {
         "baseline": base_fit,
@@ -873,4 +913,5 @@ def forward_select(
         "pair_check": pair_check,
         "box": box,
         "weak_last": weak,
+        "work": {"flights": work.flights},
     }

@@ -262,10 +262,15 @@ class OutputBuffer:
     sweep run's ensemble); a fresh one per call maps its pages anew, and those page
     faults took a third of a fit's evaluation. One buffer per caller (e.g. per fit), not
     a module global, so that callers in threads or processes never share one.
+
+    ``flights`` counts the flights the kernel has written into the buffer over all calls
+    (chatter included, reruns after a full buffer too): the work done through it (a
+    diagnosis reports its total, ``design.work`` of :mod:`bouncelab.gap.diagnose`).
     """
 
     def __init__(self) -> None:
         self._array: np.ndarray | None = None
+        self.flights = 0
 
     @property
     def array(self) -> np.ndarray | None:
@@ -327,6 +332,7 @@ def protocol_flight_times(
             np.zeros(ns), np.zeros(ns), 0, max_rec, int(settle_cycles),
             np.arange(ns, dtype=float), out,
         )  # fmt: skip
+        buffer.flights += int(rows.sum())
         if not np.any(status == K.ST_FULL):
             break
         max_rec *= 4

@@ -944,19 +944,6 @@ class EvaluationPool:
         another ``n_draws``, which a task passes along)."""
         return self.problem is problem or self.problem.data is problem.data
 
-    def gaps(
-        self,
-        model_name: str,
-        params: list[dict],
-        n_draws: int = 1,
-        shift: float = 0.0,
-        max_gamma: float | None = None,
-    ) -> list[np.ndarray]:
-        """Per-step gaps (each ndarray (G,), rad) of ``model_name`` at each parameter dict,
-        averaged over ``n_draws`` ensembles shifted by ``shift`` (:func:`step_gaps`), on
-        the pool's problem or its :meth:`Problem.restricted` to ``max_gamma``."""
-        return [g for g, _ in self.counted_gaps(model_name, params, n_draws, shift, max_gamma)]
-
     def counted_gaps(
         self,
         model_name: str,
@@ -965,7 +952,10 @@ class EvaluationPool:
         shift: float = 0.0,
         max_gamma: float | None = None,
     ) -> list[tuple[np.ndarray, int]]:
-        """:meth:`gaps`, each with the flights simulated for it (:func:`counted_step_gaps`)."""
+        """Per-step gaps (each ndarray (G,), rad) of ``model_name`` at each parameter dict,
+        averaged over ``n_draws`` ensembles shifted by ``shift``, on the pool's problem or
+        its :meth:`Problem.restricted` to ``max_gamma``; each with the flights simulated
+        for it (:func:`counted_step_gaps`)."""
         n = len(params)
         return list(
             self._executor.map(

@@ -164,6 +164,8 @@ def score(truth: dict, diag: dict) -> dict:
         "fitted": fitted,
         # the diagnosis's work: flights its kernels simulated (time per flight: the machine)
         "flights": diag["design"]["work"]["flights"],
+        # the refinement's generations (None: not refined; section 1, "Refinement")
+        "refine_generations": (diag["design"].get("refine") or {}).get("maxiter"),
     }
 
 

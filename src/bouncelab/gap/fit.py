@@ -199,21 +199,16 @@ BOX_MIN_SHARE = 0.02
 BOX_POPULATION = 24
 BOX_MAXITER = 30
 
-#: Fewer generations than this and the refinement is skipped: less than the selection's
-#: own joint search (10, 20 with feedback) is not expected to improve on it, and the
-#: 4 generations the budget gives the shipped 7650-cycle sweep made its diagnosis 147 s
-#: instead of 89 s (goal 120 s).
-REFINE_MIN_GENERATIONS = 8
-
-#: Fewer generations than this and the refinement leaves its differential evolution out:
-#: only its local search runs (Nelder-Mead on the expected gap, from the fitted values;
-#: ``maxiter`` 0). Why: that evolution starts with the fitted values in its population
-#: and needs many generations to beat them. Logged in session 28 (docs/diagnosis.md
-#: section 4): on the blind refinements of 24-33 generations (the four seed-like cases
-#: and ``feedback_a``) it first did at generation 11, 12, 14, 23 and 26; on the
-#: independent ``vibration_27hz`` (9 generations, 479 evaluations of three ensembles,
-#: about 20 s on 2 cores) never, and the local search gained 1.2 %.
-REFINE_DE_GENERATIONS = 12
+#: Fewer generations than this and the refinement is skipped. Why: its evolution starts
+#: with the fitted values in its population and needs many generations to beat them.
+#: Logged in session 28 (docs/diagnosis.md section 4): on the blind refinements of 24-33
+#: generations (the four seed-like cases and ``feedback_a``) it first did at generation
+#: 11, 12, 14, 23 and 26; on the independent ``vibration_27hz`` (9 generations) never.
+#: Sessions 28-30 ran such a short refinement as its local search alone: on that run it
+#: gained 1.2 % of the fit-step objective, changed no verdict, and cost about 17 s of a
+#: 126 s diagnosis (goal 120 s; section 4, session 31). Below 8 generations (the shipped
+#: 7650-cycle sweep gets 4) the whole refinement had made ``sweep_g0-8`` 147 s for 89 s.
+REFINE_MIN_GENERATIONS = 12
 
 #: The selected model is refined when it has at least this many continuous parameters:
 #: the round budgets find one or two parameters, not the armature's curved valley.
@@ -1298,8 +1293,7 @@ def refine_settings(
     :data:`DIAGNOSIS_CYCLES` (``spent``: simulated cycles the rounds used,
     :func:`spent_cycles`); None for models of fewer than :data:`REFINE_MIN_PARAMS`
     continuous parameters or when fewer than :data:`REFINE_MIN_GENERATIONS` generations
-    fit the budget (long runs); ``maxiter`` 0, the local search alone, when fewer than
-    :data:`REFINE_DE_GENERATIONS` do.
+    fit the budget (long runs).
     """
     free = free_params(effects, fixed)
     if sum(p.choices is None for p in free) < REFINE_MIN_PARAMS:
@@ -1311,8 +1305,6 @@ def refine_settings(
     maxiter = min(REFINE_MAXITER, int(budget / cycles // population) - 1)
     if maxiter < REFINE_MIN_GENERATIONS:
         return None
-    if maxiter < REFINE_DE_GENERATIONS:
-        maxiter = 0  # the local search alone
     return replace(
         settings,
         max_population=REFINE_POPULATION,

@@ -383,9 +383,14 @@ def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally
     least fit-step objective kept (:func:`_best_of`). ``job``: the round's
     :func:`fit_model` job of that fit (None: no armature in the round).
 
-    Skipped when the armature already settles the run (:func:`_settled`), for the time
-    goal (``raw/sweep_g0-8`` is settled at 0.81 floors by its armature), and when no
-    armature is added. Why more seeds: see :data:`ARMATURE_SEEDS`.
+    Runs after :func:`_armature_again`, with the ``ride_load`` that kept. Skipped when
+    the armature already settles the run (:func:`_settled`), for the time goal
+    (``raw/sweep_g0-8`` is settled at 0.81 floors by its armature), and when no
+    armature is added. Why more seeds: see :data:`ARMATURE_SEEDS`. Why after the other
+    choice: where that choice settles the run, the seeds are saved (independent
+    ``seed_like_impacts_only``: the other choice at 0.94 floors with the same final
+    model as the seeds first, 302 million flights for 384, 121 s for 146 s;
+    docs/diagnosis.md section 4, sessions 30-31).
     """
     if job is None or ARMATURE_SEEDS <= 1:
         return tried
@@ -393,6 +398,9 @@ def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally
     if not _worth_searching_again(tried, problem, floor, settings):
         return tried
     mine = dict(tried)
+    if "ride_load" in mine["feedback"].model.params:  # the choice _armature_again kept
+        fixed = {**job[3], "ride_load": mine["feedback"].model.params["ride_load"]}
+        job = (*job[:3], fixed, *job[4:])
     jobs = [(*job[:6], seed + j * SEED_STRIDE, *job[7:]) for j in range(1, ARMATURE_SEEDS)]
     fits = [mine["feedback"], *fit_many(jobs, pool, progress, work)]
     best = _best_of("feedback", ["feedback"] * len(fits), fits)
@@ -560,6 +568,15 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
     return [(a, singles[a]), (b, fit)], info, fits
 
 
+def _rechecked(fit: FitResult, problem: Problem, pool, work: WorkTally | None) -> FitResult:
+    """:func:`bouncelab.gap.fit.recheck_best` of ``fit`` (its :data:`RECHECK_TOP` best
+    evaluations), the flights of the fresh ensembles added to ``work``."""
+    checked = recheck_best(fit, problem, RECHECK_TOP, pool)
+    if work is not None:
+        work.flights += checked.flights - fit.flights
+    return checked
+
+
 def box_refinement(
     fit: FitResult,
     problem: Problem,
@@ -610,10 +627,7 @@ def box_refinement(
         progress,
         work,
     )  # fmt: skip
-    searched = boxed
-    boxed = recheck_best(boxed, problem, RECHECK_TOP, pool)
-    if work is not None:
-        work.flights += boxed.flights - searched.flights
+    boxed = _rechecked(boxed, problem, pool, work)
     before = float(fresh_objectives(fit.model, problem).mean())
     after = float(fresh_objectives(boxed.model, problem).mean())
     info = {
@@ -796,14 +810,16 @@ def forward_select(
                     )  # fmt: skip
             fits = fit_many(jobs, pool, progress, work)
             tried = [(eff, _best_of(eff, owners, fits)) for eff in todo]
-            if last and rounds:
-                tried = _armature_seeds(
-                    tried, jobs[owners.index("feedback")] if "feedback" in owners else None,
-                    pool, progress, floor, settings, work,
-                )  # fmt: skip
+            # the other ride_load before the extra seeds: where it settles the run the
+            # seeds are skipped (_armature_seeds)
             if last and "ride_load" in round1 and "ride_load" not in fixed:
                 tried = _armature_again(
                     tried, round1["ride_load"], (problem, prev, fixed, fit_settings, seed),
+                    pool, progress, floor, settings, work,
+                )  # fmt: skip
+            if last and rounds:
+                tried = _armature_seeds(
+                    tried, jobs[owners.index("feedback")] if "feedback" in owners else None,
                     pool, progress, floor, settings, work,
                 )  # fmt: skip
             rounds.append(tried)
@@ -860,9 +876,7 @@ def forward_select(
                 progress,
                 work,
             )  # fmt: skip
-            searched = current
-            current = recheck_best(current, final_problem, RECHECK_TOP, pool)
-            work.flights += current.flights - searched.flights
+            current = _rechecked(current, final_problem, pool, work)
             accepted[-1] = (accepted[-1][0], current)
             if is_inert(accepted[-1][0], current.model.params):
                 # the refinement took the last effect to its null value: not an effect

@@ -383,13 +383,13 @@ def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally
     least fit-step objective kept (:func:`_best_of`). ``job``: the round's
     :func:`fit_model` job of that fit (None: no armature in the round).
 
-    Runs after :func:`_armature_again`, with the ``ride_load`` that kept. Skipped when
+    Runs after :func:`_armature_again`, with the ``ride_load`` it kept. Skipped when
     the armature already settles the run (:func:`_settled`), for the time goal
     (``raw/sweep_g0-8`` is settled at 0.81 floors by its armature), and when no
     armature is added. Why more seeds: see :data:`ARMATURE_SEEDS`. Why after the other
     choice: where that choice settles the run, the seeds are saved (independent
     ``seed_like_impacts_only``: the other choice at 0.94 floors with the same final
-    model as the seeds first, 302 million flights for 384, 121 s for 146 s;
+    model as the seeds first, 302 million flights for 384, 116 s for 146 s;
     docs/diagnosis.md section 4, sessions 30-31).
     """
     if job is None or ARMATURE_SEEDS <= 1:

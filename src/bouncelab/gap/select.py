@@ -394,14 +394,17 @@ def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally
     """
     if job is None or ARMATURE_SEEDS <= 1:
         return tried
-    problem, _name, _prev, _fixed, _search, _settings, seed, *_more = job
+    problem, name, start, fixed, search, fit_settings, seed, *more = job
     if not _worth_searching_again(tried, problem, floor, settings):
         return tried
     mine = dict(tried)
-    if "ride_load" in mine["feedback"].model.params:  # the choice _armature_again kept
-        fixed = {**job[3], "ride_load": mine["feedback"].model.params["ride_load"]}
-        job = (*job[:3], fixed, *job[4:])
-    jobs = [(*job[:6], seed + j * SEED_STRIDE, *job[7:]) for j in range(1, ARMATURE_SEEDS)]
+    kept = mine["feedback"].model.params.get("ride_load")  # the choice _armature_again kept
+    if kept is not None:
+        fixed = {**fixed, "ride_load": kept}
+    jobs = [
+        (problem, name, start, fixed, search, fit_settings, seed + j * SEED_STRIDE, *more)
+        for j in range(1, ARMATURE_SEEDS)
+    ]
     fits = [mine["feedback"], *fit_many(jobs, pool, progress, work)]
     best = _best_of("feedback", ["feedback"] * len(fits), fits)
     return [(e, best if e == "feedback" else f) for e, f in tried]

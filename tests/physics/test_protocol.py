@@ -121,3 +121,48 @@ def test_chatter_heavy_protocol_grows_its_buffer():
     df = simulate_protocol(m, [1.1], [20])
     assert len(df) > 4 * 20 + 64
     assert df["chatter"].any()
+
+
+@pytest.mark.parametrize(
+    "name, params",
+    [
+        ("friction+harmonic", {"mu": 0.2, "k": 2.0, "a": 0.05, "psi": 1.0}),
+        (
+            "friction+restitution+feedback",
+            {"mu": 0.2, "e": 0.4, "mass_ratio": 0.1, "f_ratio": 0.4, "zeta": 0.2, "ride_load": 1.0},
+        ),
+    ],  # fmt: skip
+)
+def test_the_fits_kernel_skips_only_the_energy_of_rides(name, params):
+    """``protocol_flight_times`` (every fit's evaluation) runs the kernel without
+    friction's ride term (``P_ENERGY`` 0), which on a plate that is not a pure sine costs
+    a walk between the plate's turning points. Reference: the full kernel, bit for bit
+    for the flights (times, phases, states, steps); the friction loss does differ, so the
+    term was skipped."""
+    from bouncelab.physics.simulate import (
+        _protocol_steps,
+        kernel_params,
+        protocol_flight_times,
+    )
+
+    model = Model.parse(name, params)
+    gammas, cycles = np.array([1.8, 2.6, 3.4, 4.2]), np.array([30, 30, 30, 30])
+    g, step_end = _protocol_steps(gammas, cycles, 5)
+    hk, ha, hp = model.harmonic_arrays()
+    max_rec = int(32 * step_end[-1] + 64)
+    cols = {}
+    for energy in (1.0, 0.0):
+        par = kernel_params(model)
+        par[K.P_ENERGY] = energy
+        out = np.zeros((K.NCOL, max_rec))
+        (rows,), (status,) = K.run_many(
+            par, hk, ha, hp, model.gamma_true(g)[None, :], g[None, :], step_end, True,
+            np.zeros(1), np.zeros(1), np.zeros(1), 0, max_rec, 5, np.zeros(1), out,
+        )  # fmt: skip
+        assert status != K.ST_FULL and rows > 100
+        cols[energy] = out[:, :rows]
+    dynamics = [K.C_T, K.C_PHI0, K.C_PHIL, K.C_VIMP, K.C_TTO, K.C_X0, K.C_V0, K.C_STEP]
+    np.testing.assert_array_equal(cols[0.0][dynamics], cols[1.0][dynamics])
+    assert cols[0.0][K.C_EFRIC].sum() < cols[1.0][K.C_EFRIC].sum()
+    fits = protocol_flight_times(model, gammas, cycles, 5)
+    np.testing.assert_array_equal(fits["T"], cols[1.0][K.C_T])

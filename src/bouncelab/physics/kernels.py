@@ -37,7 +37,8 @@ P_CAP = 8  # hard cap on flights in one chatter sequence
 P_RIDE = 9  # longest ride searched for a takeoff (rad) before declaring the body stuck
 P_FAST = 10  # 1.0: pure sine plates use fly_sine; 0.0: the general solver fly everywhere
 P_LOAD = 11  # ride_load: share of a riding body's contact force that loads the armature
-NPAR = 12
+P_ENERGY = 12  # 1.0: the energy columns complete; 0.0: friction's ride term skipped (fits)
+NPAR = 13
 
 # --- output columns -----------------------------------------------------------------
 C_GAMMA = 0  # stated Gamma at takeoff
@@ -1134,6 +1135,7 @@ def trajectory(
     maxit = 200000
 
     fast = par[P_FAST] > 0.0 and nh == 0 and not use_arm  # pure sine plate: fly_sine
+    energy = par[P_ENERGY] > 0.0
     g_al = -1.0  # Gamma of the cached curvature edges (fly_sine)
     al_u = -1.0
     al_d = -1.0
@@ -1249,7 +1251,9 @@ def trajectory(
                     )  # fmt: skip
                 if pend:
                     fr_ = 0.0
-                    if mu > 0.0:
+                    # the ride's path length only feeds the energy columns; on a plate that
+                    # is not a pure sine it costs a certified walk between turning points
+                    if mu > 0.0 and energy:
                         fr_ = mu * ride_tv(
                             phi_e, pt, g, hk, ha, th, arm, ay, av, aref, rl, ro, rf2, m3, maxit,
                             rpc,

@@ -87,6 +87,7 @@ def kernel_params(model: Model, fast: bool = True) -> np.ndarray:
     par[K.P_CAP] = CHATTER_CAP
     par[K.P_RIDE] = RIDE_CYCLES * 2.0 * math.pi
     par[K.P_FAST] = 1.0 if fast else 0.0
+    par[K.P_ENERGY] = 1.0
     return par
 
 
@@ -321,6 +322,7 @@ def protocol_flight_times(
     hk, ha, hp = model.harmonic_arrays()
     par = kernel_params(model)
     par[K.P_EPS] = float(chatter_eps)
+    par[K.P_ENERGY] = 0.0  # flight times only: the energy columns are not read
     # room for chatter at once: np.empty only maps pages, so unwritten room costs nothing,
     # while a rerun after a full buffer costs a whole simulation
     max_rec = int(32 * step_end[-1] + 64)

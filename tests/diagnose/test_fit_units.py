@@ -757,7 +757,7 @@ def test_the_last_rounds_other_ride_load_runs_before_the_extra_seeds(
     one floor (0.9) it settles the run: no extra seed is searched. Above (1.4) the two
     extra seeds are searched with the impacts-only choice, not round 1's, and the best of
     them (1.2) is taken. Why this order: docs/diagnosis.md section 4, session 31
-    (independent ``seed_like_impacts_only`` 121 s instead of 146 s, the same answer)."""
+    (independent ``seed_like_impacts_only`` 116 s instead of 146 s, the same answer)."""
     from bouncelab.gap import select
 
     calls = []

@@ -7,6 +7,9 @@ Measures (printed and written to benchmarks/results/extract.json):
   thread;
 - the same on a harder signal where the RC constant is not measurable, so its estimate
   scans the whole recording instead of the first 100 s (``worst_*``);
+- the same with a 50 Hz mains hum of 5 % of the swing added, which the detection finds
+  and subtracts first (``hum_*``; docs/flights.md, "Interference"); every detection is
+  given the sampling rate, as ``extract_run`` gives it, so the hum gate is timed too;
 - decode time of the FLAC recording (``bouncelab.runs.read_recording``), reported apart;
 - peak resident memory of a full ``extract_run`` in a fresh subprocess (target < 2 GB).
 
@@ -178,12 +181,20 @@ def main() -> int:
         dec, rec = timed(lambda: read_recording(run, roles=("continuity",)), 3)
         x = rec.channels["continuity"]  # decoded samples, float32 volts
         del rec
-        detect_contacts(x[: 10 * FS])  # load the numba cache first
+        detect_contacts(x[: 10 * FS], sample_rate_hz=FS)  # load the numba cache first
         det_cpu = []
-        det_t, det = timed(lambda: detect_contacts(x), args.repeat, det_cpu)
-        one_t, _ = timed(lambda: detect_contacts(x, n_threads=1), max(3, args.repeat // 2))
+        det_t, det = timed(lambda: detect_contacts(x, sample_rate_hz=FS), args.repeat, det_cpu)
+        one_t, _ = timed(
+            lambda: detect_contacts(x, n_threads=1, sample_rate_hz=FS), max(3, args.repeat // 2)
+        )
         worst = make_signal(n, seed=1, measurable_rc=False)
-        worst_t, _ = timed(lambda: detect_contacts(worst), max(3, args.repeat // 2))
+        worst_t, _ = timed(
+            lambda: detect_contacts(worst, sample_rate_hz=FS), max(3, args.repeat // 2)
+        )
+        hummed = x + np.float32(0.25) * np.sin(2 * np.pi * 50.0 * np.arange(n) / FS).astype(
+            np.float32
+        )
+        hum_t, hum_det = timed(lambda: detect_contacts(hummed, sample_rate_hz=FS), 3)
         peak_mb, n_flights = peak_rss_of_extract(run_dir)
     res |= {
         "detect_s_best": min(det_t),
@@ -198,6 +209,8 @@ def main() -> int:
         "detect_1thread_samples_per_s_median": n / statistics.median(one_t),
         "worst_detect_samples_per_s_best": n / min(worst_t),
         "worst_detect_samples_per_s_median": n / statistics.median(worst_t),
+        "hum_detect_samples_per_s_best": n / min(hum_t),
+        "hum_flights_share_of_clean": hum_det.flights()[0].shape[0] / det.flights()[0].shape[0],
         "target_samples_per_s": 1e8,
         "decode_flac_s_best": min(dec),
         "decode_flac_s_median": statistics.median(dec),

@@ -133,7 +133,14 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     g = float(run.extra.get("g_m_s2", G_STANDARD) or G_STANDARD)
     h = float(run.drop_height_m)
     opened = [_step_slice(rec.t_start_s, run.release_t_s, fs, rec.time_s, rec.n_samples)]
-    det = detect_contacts(rec.channels["continuity"], run.contact_level, (), opened, path=rec.path)
+    det = detect_contacts(
+        rec.channels["continuity"],
+        run.contact_level,
+        (),
+        opened,
+        path=rec.path,
+        sample_rate_hz=fs,
+    )
     edges_s = sample_times(det.t_edge, fs, rec.time_s)
     landing = edges_s[det.kind == 1]
     after = landing[landing > run.release_t_s]

@@ -15,9 +15,9 @@ from bouncelab.flights import NoContactsError, detect_contacts
 FS = 20_000.0
 
 
-def match(det, contacts, tol_s=0.3e-3):
+def match(det, contacts, tol_s=0.3e-3, fs=FS):
     """Flight-duration errors (s) of matched true flights and the share found."""
-    ta, tl = (v / FS for v in det.flights())
+    ta, tl = (v / fs for v in det.flights())
     tt, tlt = true_flights(contacts)
     j = np.clip(np.searchsorted(tl, tlt), 1, len(tl) - 1)
     jj = np.where(np.abs(tl[j - 1] - tlt) < np.abs(tl[j] - tlt), j - 1, j)

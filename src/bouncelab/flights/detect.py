@@ -6,6 +6,9 @@ is in the numba kernels of :mod:`bouncelab.flights.kernels`; this module arrange
 
 Rules (docs/flights.md has the full story):
 
+* Interference: given the sampling rate, a fast additive interference (mains hum) is
+  looked for on a few windows and, where clearly there, subtracted from the whole
+  channel first (:mod:`bouncelab.flights.interference`); a clean channel is untouched.
 * Levels: a global two-means split of (a stride of) the samples starts a per-block
   estimate (blocks of ``block`` samples, 0.1-0.2 s): each level is the mean of the
   samples within a quarter of the gap from it, followed from block to block, and
@@ -38,13 +41,14 @@ in the rare case they differ.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
 
 from bouncelab.errors import BouncelabError
 from bouncelab.flights import kernels
+from bouncelab.flights.interference import remove_interference
 
 BLOCK = 4096  # samples per level block (0.2 s at 20 kHz): drift is much slower
 MIN_COUNT = 32  # samples a level needs in a block to be trusted there
@@ -82,6 +86,9 @@ class Detection:
     glitch_at : (g,) int, sample indices of the (first 4096) glitches removed.
     block : int, samples per block.
     n_samples : int.
+    interference_v : (n_blocks,) float, rms of the fast interference (mains hum)
+        subtracted before detection, volts (:mod:`.interference`); zeros when none was
+        found or no sampling rate was given.
     """
 
     t_edge: np.ndarray
@@ -98,6 +105,7 @@ class Detection:
     glitch_at: np.ndarray
     block: int
     n_samples: int
+    interference_v: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def tau_samples(self) -> float:
@@ -421,6 +429,7 @@ def detect_contacts(
     path=None,
     n_threads: int | None = None,
     piece: int | None = None,
+    sample_rate_hz: float | None = None,
 ) -> Detection:
     """Find every contact and flight edge in a continuity channel.
 
@@ -435,6 +444,9 @@ def detect_contacts(
     n_threads : threads for the passes over the samples (None: numba's thread count).
     piece : samples per piece of a parallel pass (None: automatic).  Neither changes
         the result, which is bit for bit that of the serial kernels.
+    sample_rate_hz : sampling rate; with it a fast interference (mains hum) is found
+        and, where clearly there, subtracted first (:mod:`.interference`).  None: not
+        looked for.
 
     Raises
     ------
@@ -445,15 +457,27 @@ def detect_contacts(
     if x.shape[0] < 3:
         raise BouncelabError(path, "continuity channel has fewer than 3 samples")
     with Parallel(n_threads, piece) as par:
-        return _detect(x, contact_level, rest_intervals, open_intervals, block, path, par)
+        return _detect(
+            x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz
+        )
 
 
-def _detect(x, contact_level, rest_intervals, open_intervals, block, path, par) -> Detection:
+def _detect(
+    x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz=None
+) -> Detection:
     """:func:`detect_contacts` with its pieces run by ``par`` (a :class:`Parallel`)."""
     n = x.shape[0]
     s = _subsample(x)
     noise_f = par.submit(_robust_noise, s)
     lo0, hi0, _ = two_means(s)
+    hum = np.zeros(-(-n // block))
+    if sample_rate_hz and hi0 > lo0:
+        cleaned, hum = remove_interference(x, lo0, hi0, noise_f.result(), sample_rate_hz, block)
+        if cleaned is not x:  # found and subtracted: the levels and noise of the rest
+            x = cleaned
+            s = _subsample(x)
+            noise_f = par.submit(_robust_noise, s)
+            lo0, hi0, _ = two_means(s)
     (lo_b, hi_b, frac_hi, sd_b), rec = par.block_levels(x, block, lo0, hi0, MIN_COUNT)
     check_transitions(x, path, (*kernels.block_extremes(rec), block))
     noise = noise_f.result()
@@ -513,6 +537,7 @@ def _detect(x, contact_level, rest_intervals, open_intervals, block, path, par) 
         glitch_at=glitch_at,
         block=block,
         n_samples=int(n),
+        interference_v=hum,
     )
 
 

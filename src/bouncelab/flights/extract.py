@@ -42,6 +42,7 @@ QC_COLUMNS = [
     "level_gap_v",
     "contact_fraction",
     "tau_rc_s",
+    "interference_v",
     "drive_amplitude_v",
     "drive_noise_v",
 ]
@@ -192,6 +193,7 @@ def _qc_table(run_id, steps, det, fs, time_s, flights, fits, drive_present) -> p
             "level_gap_v": np.nan,
             "contact_fraction": np.nan,
             "tau_rc_s": tau_s,
+            "interference_v": np.nan,
             "drive_amplitude_v": np.nan,
             "drive_noise_v": np.nan,
         }
@@ -202,6 +204,8 @@ def _qc_table(run_id, steps, det, fs, time_s, flights, fits, drive_present) -> p
                 rec["noise_v"] = float(np.median(det.noise_v[m]))
                 rec["level_gap_v"] = float(np.median(np.abs(det.contact_v - det.open_v)[m]))
                 rec["contact_fraction"] = float(det.n_contact[m].sum() / sizes[m].sum())
+                if det.interference_v.shape[0] == nb:
+                    rec["interference_v"] = float(np.median(det.interference_v[m]))
         fit = fits.get(int(row.step)) if drive_present else None
         if fit is not None:
             rec["drive_amplitude_v"] = fit.amplitude
@@ -267,7 +271,7 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     if run.kind == "drop" and run.release_t_s is not None:
         opened.append(_step_slice(rec.t_start_s, run.release_t_s, fs, time_s, n))
     try:
-        det = detect_contacts(x, run.contact_level, rest, opened, path=rec.path)
+        det = detect_contacts(x, run.contact_level, rest, opened, path=rec.path, sample_rate_hz=fs)
     except NoContactsError:
         if run.kind == "sweep" and len(steps) and bool((steps["gamma"] < 1.0).all()):
             det = None  # the body rests all along: no flights, and that is right

@@ -9,6 +9,9 @@ Rules (docs/flights.md has the full story):
 * Interference: given the sampling rate, a fast additive interference (mains hum) is
   looked for on a few windows and, where clearly there, subtracted from the whole
   channel first (:mod:`bouncelab.flights.interference`); a clean channel is untouched.
+* Level jumps: after the detection, a level lost or blurred by a gain or supply change
+  (:func:`level_jump`) splits the recording at the jump (:func:`refine_cut`), and each
+  side is detected on its own; a steady channel is untouched.
 * Levels: a global two-means split of (a stride of) the samples starts a per-block
   estimate (blocks of ``block`` samples, 0.1-0.2 s): each level is the mean of the
   samples within a quarter of the gap from it, followed from block to block, and
@@ -59,6 +62,12 @@ PRIOR_SAMPLES = 2_000_000  # samples used to learn the typical short-contact dur
 PIECE = 1 << 20  # samples per piece of a parallel pass (pieces are claimed dynamically)
 MAX_PIECES_PER_THREAD = 4  # more pieces balance the load, each costs a warm-up
 EDGE_WARMUP = 256  # samples the edge pass runs before a piece to settle its state
+ORPHAN_SHARE = 0.25  # a level jump: more than this share of a block's samples near
+ORPHAN_SPREAD = 0.1  # ... neither tracked level, gathered within this share of the gap,
+ORPHAN_BLOCKS = 2  # ... in this many consecutive blocks
+MAX_LEVEL_JUMPS = 8  # splits at most per recording side
+TRACKED_JUMP = 0.15  # ... or a tracked level that moves this share of the gap in a block
+JUMP_POINTS = 100_000  # strided samples read for level jumps
 
 
 class NoContactsError(BouncelabError):
@@ -457,9 +466,179 @@ def detect_contacts(
     if x.shape[0] < 3:
         raise BouncelabError(path, "continuity channel has fewer than 3 samples")
     with Parallel(n_threads, piece) as par:
-        return _detect(
+        return _detect_split(
             x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz
         )
+
+
+def _detect_split(
+    x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz, depth=0
+) -> Detection:
+    """:func:`_detect`, and where the levels jumped (:func:`level_jump`: a gain or supply
+    change) each side again on its own, with the polarity found on the whole."""
+    det = _detect(
+        x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz
+    )
+    cut = level_jump(x, det) if depth < MAX_LEVEL_JUMPS else None
+    if cut is None:
+        return det
+    cut = refine_cut(x, cut, block)
+    if not block <= cut <= x.shape[0] - block:
+        return det  # at an end: nothing to split off
+    level = "high" if det.contact_high else "low"
+    parts = []
+    for a, b in ((0, cut), (cut, x.shape[0])):
+        try:
+            side = _detect_split(x[a:b], level, (), (), block, path, par, sample_rate_hz, depth + 1)
+        except NoContactsError:
+            side = None  # e.g. a side where the body rests all along
+        parts.append((a, side))
+    return det if all(d is None for _, d in parts) else _joined(parts, det, block)
+
+
+def level_jump(x: np.ndarray, det: Detection) -> int | None:
+    """A block boundary near the first jump of the levels (a gain or supply change), or
+    None.
+
+    The block levels follow drift of less than a quarter of the gap per block.  A level
+    that moves further at once is either lost (its samples then lie near neither tracked
+    level: "orphans"; transition samples are orphans too, but spread between the levels,
+    while a lost level gathers them at one value) or followed, but blurred over a block
+    by the interpolation between block centres.  Found as ``ORPHAN_BLOCKS`` consecutive
+    blocks with more than ``ORPHAN_SHARE`` of the (strided) samples orphaned within
+    ``ORPHAN_SPREAD`` of the gap of each other, or a tracked level that moves more than
+    ``TRACKED_JUMP`` of the gap from one block to the next.  An orphan run that ends
+    before the recording does marks the jump at its end (the levels were wrong before
+    it: the start's levels mixed both sides'); one that lasts to the end, at its start
+    (the tracking lost a level there).  The earliest candidate is returned;
+    :func:`refine_cut` finds the sample.
+    """
+    n = x.shape[0]
+    step = max(1, n // JUMP_POINTS)
+    idx = np.arange(0, n, step)
+    v = np.asarray(x[::step], dtype=np.float64)
+    blk = idx // det.block
+    nb = det.open_v.shape[0]
+    lo, hi = det.open_v[blk], det.contact_v[blk]
+    gap = np.abs(hi - lo)
+    orphan = (np.abs(v - lo) > 0.25 * gap) & (np.abs(v - hi) > 0.25 * gap)
+    cnt = np.bincount(blk, minlength=nb).astype(np.float64)
+    k = np.bincount(blk, weights=orphan.astype(np.float64), minlength=nb)
+    s1 = np.bincount(blk, weights=np.where(orphan, v, 0.0), minlength=nb)
+    s2 = np.bincount(blk, weights=np.where(orphan, v * v, 0.0), minlength=nb)
+    g = np.abs(det.contact_v - det.open_v)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        spread = np.sqrt(np.maximum(s2 / k - (s1 / k) ** 2, 0.0))
+        bad = (k > ORPHAN_SHARE * cnt) & (k >= 8) & (spread < ORPHAN_SPREAD * g)
+    # runs of bad blocks: [starts[i], ends[i])
+    edges = np.diff(np.concatenate(([0], bad.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    long = ends - starts >= ORPHAN_BLOCKS
+    cuts = []
+    if long.any():
+        r0, r1 = int(starts[long][0]), int(ends[long][0])
+        # levels tracked right after the run, wrong during it (the start's levels were a
+        # mixture of both sides'): the jump ends the run; else the tracking lost a level
+        # at the jump and never found it again: the jump starts the run
+        cuts.append(r1 * det.block if r1 < nb else max(r0 - 1, 1) * det.block)
+    # a jump the tracking followed: levels interpolated across it blur one block
+    followed = np.flatnonzero(
+        (_level_step(det.open_v) > TRACKED_JUMP * g[:-1])
+        | (_level_step(det.contact_v) > TRACKED_JUMP * g[:-1])
+    )
+    if followed.size:
+        cuts.append((int(followed[0]) + 1) * det.block)
+    cuts = [c for c in cuts if 0 < c < n]
+    return min(cuts) if cuts else None
+
+
+def _level_step(level: np.ndarray, k: int = 3) -> np.ndarray:
+    """``|median(level[j+1 : j+1+k]) - median(level[j-k+1 : j+1])|`` for each boundary
+    ``j | j+1`` between blocks (the ends repeated), shape ``(n_blocks - 1,)``: a lasting
+    step of a block level, not one block's noisy estimate (a level seen in few samples)."""
+    if level.shape[0] < 2:
+        return np.zeros(0)
+    padded = np.concatenate((np.full(k - 1, level[0]), level, np.full(k - 1, level[-1])))
+    med = np.median(np.lib.stride_tricks.sliding_window_view(padded, k), axis=1)
+    # med[i] covers level[i-k+1 : i+1] (the ends repeated); before j+1 and after j
+    return np.abs(med[k : k + level.shape[0] - 1] - med[: level.shape[0] - 1])
+
+
+def refine_cut(x: np.ndarray, cut: int, block: int) -> int:
+    """The sample where the levels jump, near a block boundary ``cut`` of :func:`level_jump`.
+
+    The levels on each side come from a two-means split of the samples 1-4 blocks away
+    from ``cut``; within two blocks of it, the jump is the index that best separates the
+    samples that fit only the left side's levels (within a quarter of its gap) from those
+    that fit only the right side's.  ``cut`` itself when a side shows no two levels.
+    """
+    n = x.shape[0]
+    left = np.asarray(x[max(0, cut - 4 * block) : max(0, cut - block)], dtype=np.float64)
+    right = np.asarray(x[min(n, cut + block) : min(n, cut + 4 * block)], dtype=np.float64)
+    if left.shape[0] < block or right.shape[0] < block:
+        return cut
+    lv, rv = two_means(left)[:2], two_means(right)[:2]
+    noise = max(_robust_noise(left), _robust_noise(right), 1e-12)
+    if min(lv[1] - lv[0], rv[1] - rv[0]) < MIN_SEPARATION * noise:
+        return cut
+    a, b = max(0, cut - 2 * block), min(n, cut + 2 * block)
+    w = np.asarray(x[a:b], dtype=np.float64)
+
+    def fits(levels):
+        tol = 0.25 * (levels[1] - levels[0])
+        return (np.abs(w - levels[0]) < tol) | (np.abs(w - levels[1]) < tol)
+
+    only_l, only_r = fits(lv), fits(rv)
+    only_l, only_r = only_l & ~only_r, only_r & ~only_l
+    # misfits when cutting before sample i: right-only samples before i, left-only after
+    cost = np.concatenate(([0], np.cumsum(only_r))) + (
+        only_l.sum() - np.concatenate(([0], np.cumsum(only_l)))
+    )
+    return a + int(np.argmin(cost))
+
+
+def _joined(parts, whole: Detection, block: int) -> Detection:
+    """One :class:`Detection` from the detections of consecutive pieces
+    ``[(start, det or None), ...]`` (None: no contacts there).  Per-block arrays are
+    read on the whole recording's block grid, each block from the piece holding its
+    centre (``whole``'s own where that piece has none)."""
+    nb = whole.open_v.shape[0]
+    centre = (np.arange(nb) + 0.5) * block
+    starts = np.array([a for a, _ in parts])
+    which = np.searchsorted(starts, centre, side="right") - 1
+    per_block = {}
+    for k in _PER_BLOCK:
+        base = getattr(whole, k)
+        vals = np.array(base if base.shape[0] == nb else np.zeros(nb))
+        for i, (a, d) in enumerate(parts):
+            arr = getattr(d, k) if d is not None else np.zeros(0)
+            if arr.shape[0] == 0:
+                continue
+            m = which == i
+            local = np.clip(((centre[m] - a) // block).astype(np.int64), 0, arr.shape[0] - 1)
+            vals[m] = arr[local]
+        per_block[k] = vals
+    found = [(a, d) for a, d in parts if d is not None]
+    t_all = np.concatenate([d.t_edge + a for a, d in found])
+    kind_all = np.concatenate([d.kind for _, d in found])
+    keep = np.ones(kind_all.shape[0], dtype=bool)
+    keep[1:] = kind_all[1:] != kind_all[:-1]  # kinds alternate across a junction too
+    main = max((d for _, d in found), key=lambda d: d.n_samples)
+    return Detection(
+        t_edge=t_all[keep],
+        kind=kind_all[keep],
+        first_state=parts[0][1].first_state if parts[0][1] is not None else whole.first_state,
+        contact_high=whole.contact_high,
+        q=main.q,
+        d_prior=main.d_prior,
+        glitch_at=np.concatenate([d.glitch_at + a for a, d in found])[:4096],
+        block=block,
+        n_samples=whole.n_samples,
+        **per_block,
+    )
+
+
+_PER_BLOCK = ("open_v", "contact_v", "noise_v", "n_glitch", "n_contact", "interference_v")
 
 
 def _detect(

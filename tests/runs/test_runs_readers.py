@@ -194,6 +194,49 @@ def test_csv_with_semicolon_or_tab_separator(make_run, sep):
     np.testing.assert_array_equal(rec.channels["drive"], sig["drive"])
 
 
+def _as_export(text: str, comments: bool, units: bool, european: bool) -> str:
+    """A CSV text as data-acquisition software writes it: ``#`` comment lines first, a
+    units row under the header, ``;`` separators with decimal commas."""
+    header, *rows = text.splitlines()
+    if european:
+        header = header.replace(",", ";")
+        rows = [r.replace(",", ";").replace(".", ",") for r in rows]
+    sep = ";" if european else ","
+    lines = [header] + ([sep.join(["V"] * len(header.split(sep)))] if units else []) + rows
+    if comments:
+        lines = ["# exported by a DAQ program", "# sample rate: see run.yaml"] + lines
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(
+    "comments,units,european",
+    [(True, False, False), (False, True, False), (False, False, True), (True, True, True)],
+)
+def test_csv_exports_with_comments_units_row_or_decimal_commas(make_run, comments, units, european):
+    """Reference: the written signal, exactly; the same file without those features reads
+    the same, and a units row is not taken for samples."""
+    sig = known_signals()
+    run_dir = make_run("csv", signals=sig)
+    p = run_dir / "rec.csv"
+    p.write_text(_as_export(p.read_text(), comments, units, european))
+    rec = read_recording(run_dir)
+    for role, values in sig.items():
+        np.testing.assert_array_equal(rec.channels[role], values)
+    assert rec.n_samples == len(next(iter(sig.values())))
+
+
+def test_csv_text_in_the_samples_is_still_one_error(make_run):
+    """A text cell among the samples (not a units row right under the header) stays an
+    error that names the file."""
+    run_dir = make_run("csv", signals=known_signals())
+    p = run_dir / "rec.csv"
+    lines = p.read_text().splitlines()
+    lines[5] = ",".join(["oops"] * len(lines[5].split(",")))
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(BouncelabError, match="rec.csv: cannot read CSV samples"):
+        read_recording(run_dir)
+
+
 @settings(max_examples=50, deadline=None)
 @given(
     starts=st.lists(st.floats(0, 1000, allow_nan=False), min_size=1, max_size=30, unique=True).map(

@@ -219,11 +219,9 @@ def _read_audio(run: Run, roles: tuple[str, ...]) -> Recording:
 # ------------------------------------------------------------------------ CSV
 
 
-def csv_delimiter(path: Path) -> str:
-    """The field separator of a CSV file, from its header line: ``,`` unless the header
-    has none and has ``;`` or a tab (exports of spreadsheets set to a European locale)."""
-    with open(path, encoding="utf-8", errors="replace") as f:
-        header = f.readline()
+def csv_delimiter(header: str) -> str:
+    """The field separator of a CSV header line: ``,`` unless the header has none and has
+    ``;`` or a tab (exports of spreadsheets set to a European locale)."""
     if "," not in header:
         for sep in (";", "\t"):
             if sep in header:
@@ -231,11 +229,67 @@ def csv_delimiter(path: Path) -> str:
     return ","
 
 
+def _is_number(field: str, decimal: str) -> bool:
+    """Whether one CSV field parses as a number (empty: no)."""
+    text = field.strip().strip('"')
+    if decimal == ",":
+        text = text.replace(",", ".")
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class CsvDialect:
+    """How a CSV file is laid out, from its first lines (:func:`csv_dialect`).
+
+    Attributes
+    ----------
+    sep : field separator.
+    decimal : ``.``, or ``,`` (a decimal comma, with ``;`` or tab separators).
+    skip : 0-based line numbers to skip: leading ``#`` comment lines, and a units row
+        right after the header (a second row of text, e.g. ``s;V;V``).
+    """
+
+    sep: str
+    decimal: str
+    skip: tuple[int, ...]
+
+
+def csv_dialect(path: Path) -> CsvDialect:
+    """Read the separator, the decimal mark and the lines to skip from a CSV's first lines.
+
+    Exports of data-acquisition software often start with ``#`` comment lines, put a row
+    of units under the header, and in a European locale write ``;``-separated fields
+    with decimal commas; each is recognised here so that such a file reads as it is.
+    """
+    with open(path, encoding="utf-8", errors="replace") as f:
+        lines = [line.rstrip("\r\n") for _, line in zip(range(64), f, strict=False)]
+    comments = 0
+    while comments < len(lines) and lines[comments].lstrip().startswith("#"):
+        comments += 1
+    skip = list(range(comments))
+    header = lines[comments] if comments < len(lines) else ""
+    sep = csv_delimiter(header)
+    rows = [line.split(sep) for line in lines[comments + 1 :] if line.strip()]
+    decimal = "."
+    fields = [f for row in rows for f in row]
+    if sep != "," and any("," in f for f in fields) and not any("." in f for f in fields):
+        decimal = ","
+    if len(rows) >= 2 and not any(_is_number(f, decimal) for f in rows[0]):
+        if any(_is_number(f, decimal) for f in rows[1]):
+            skip.append(comments + 1)  # a units row under the header
+    return CsvDialect(sep, decimal, tuple(skip))
+
+
 def _read_csv(run: Run, roles: tuple[str, ...]) -> Recording:
     path = run.recording_path
     try:
-        sep = csv_delimiter(path)
-        columns = list(pd.read_csv(path, nrows=0, sep=sep).columns)
+        dialect = csv_dialect(path)
+        read = dict(sep=dialect.sep, decimal=dialect.decimal, skiprows=list(dialect.skip))
+        columns = list(pd.read_csv(path, nrows=0, **read).columns)
     except pd.errors.EmptyDataError:
         raise BouncelabError(path, "empty recording: no header and no samples") from None
     except (ValueError, UnicodeDecodeError, OSError) as exc:
@@ -252,7 +306,7 @@ def _read_csv(run: Run, roles: tuple[str, ...]) -> Recording:
     if TIME_COLUMN in columns and TIME_COLUMN not in wanted:
         wanted.append(TIME_COLUMN)
     try:
-        df = pd.read_csv(path, sep=sep, usecols=wanted, dtype=dict.fromkeys(wanted, np.float64))
+        df = pd.read_csv(path, usecols=wanted, dtype=dict.fromkeys(wanted, np.float64), **read)
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         raise BouncelabError(path, f"cannot read CSV samples: {_one_line(exc)}") from None
     n = len(df)

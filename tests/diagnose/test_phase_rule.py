@@ -88,3 +88,22 @@ def test_fewer_than_three_steps_never_flag():
     out = sharp_phase_offset(*_case([0.5, 0.5]))
     assert out["median"] == pytest.approx(0.5) and out["median_se"] is None
     assert phase_shift_reason(out) is None
+
+
+@pytest.mark.parametrize(
+    "median,hint",
+    [(3.122, "close to pi"), (-3.0, "close to pi"), (1.5, "close to pi/2"), (-0.38, None)],
+)
+def test_an_offset_near_pi_or_half_pi_names_the_drive_wiring(median, hint):
+    """A drive reference wired inverted (or an accelerometer) shifts every phase by pi;
+    the reason then says so and what to add to ``drive_phase_offset_rad`` (minus the
+    offset, which is model minus data; on raw/sweep_g0-4 with its drive inverted the
+    diagnosis read +3.122 rad, and -3.1218 rad put the phases back within 0.02 rad). A
+    delay-sized offset gets no such hint."""
+    reason = phase_shift_reason(
+        {"median": median, "median_se": 0.01, "n_steps": 10, "steps": "sharp"}
+    )
+    if hint is None:
+        assert "drive_phase_offset_rad" not in reason
+    else:
+        assert hint in reason and f"add {-median:.4f} rad to drive_phase_offset_rad" in reason

@@ -57,6 +57,14 @@ PHASE_TOL = 0.1
 PHASE_SIGMAS = 2.0
 PHASE_MIN_STEPS = 3
 
+#: An offset within this (rad) of pi or pi/2 is named as a likely wiring of the drive
+#: reference (:func:`phase_shift_reason`), with the correction for ``run.yaml``.
+PHASE_HINT_TOL = 0.3
+PHASE_HINTS = (
+    (math.pi, "pi", "an inverted drive channel, or an accelerometer used as the drive"),
+    (0.5 * math.pi, "pi/2", "a drive channel in quadrature with the plate (a velocity)"),
+)
+
 #: Steps whose data floor is at most this many times ``MIN_FLOOR`` are "sharp" (periodic)
 #: for the takeoff-phase rule (:func:`sharp_phase_offset`).
 SHARP_FLOORS = 2.0
@@ -652,11 +660,20 @@ def phase_shift_reason(phase: dict) -> str | None:
         return None
     if abs(median) <= PHASE_TOL or abs(median) <= PHASE_SIGMAS * se:
         return None
-    return (
+    reason = (
         f"takeoff phases differ by {median:+.3f} rad (median over {phase['n_steps']} "
         f"{phase['steps']} steps, standard error {se:.3f}; limit {PHASE_TOL:g} and "
         f"{PHASE_SIGMAS:g} standard errors), which flight times cannot show"
     )
+    # a drive reference wired inverted (or an accelerometer, in antiphase with the
+    # position) shifts every phase by pi; one a quarter period off is a velocity signal
+    for shift, name, what in PHASE_HINTS:
+        if abs(abs(median) - shift) <= PHASE_HINT_TOL:
+            return (
+                f"{reason}; an offset this close to {name} suggests {what}: if so, add "
+                f"{-median:.4f} rad to drive_phase_offset_rad in run.yaml"
+            )
+    return reason
 
 
 def _json_safe(value):

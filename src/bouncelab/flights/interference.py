@@ -223,7 +223,9 @@ def remove_interference(
     noise_v : white-noise standard deviation per sample, volts.
     sample_rate_hz : sampling rate.
     block : samples per level block, for the per-block rms.
-    piece : samples per piece (memory; does not change the result beyond rounding).
+    piece : samples per piece (memory).  Each piece takes its own levels' offsets
+        (1 s blocks from its start), so the estimate depends a little on it; fixed by
+        default, so the result is deterministic.
 
     Returns
     -------

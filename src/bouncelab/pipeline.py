@@ -17,23 +17,36 @@ def check_run_verdict(run_dir) -> dict:
     """Validate a run folder and return a JSON-ready verdict; never raises for bad input.
 
     Returns ``{"ok": bool, "run": id, "error": one line or "", "summary": text,
-    "info": validate's dict or {}}``. The workflow records this instead of failing, so
-    that one broken run cannot stop the report; the run's own jobs still fail with
-    the same error.
+    "info": validate's dict or {}, "no_diagnosis": why a sweep cannot be diagnosed, or
+    ""}``. The workflow records this instead of failing, so that one broken run cannot
+    stop the report; the run's own jobs still fail with the same error.  A sweep too
+    short to diagnose (:func:`bouncelab.gap.fit.too_few_steps`) passes, and gets every
+    product but the diagnosis.
     """
+    from bouncelab.gap.fit import too_few_steps
     from bouncelab.runs import validate_run
 
     run_dir = Path(run_dir)
     try:
         report = validate_run(run_dir)
     except BouncelabError as exc:
-        return {"ok": False, "run": run_dir.name, "error": str(exc), "summary": "", "info": {}}
+        return {
+            "ok": False,
+            "run": run_dir.name,
+            "error": str(exc),
+            "summary": "",
+            "info": {},
+            "no_diagnosis": "",
+        }
+    info = json.loads(json.dumps(report.to_dict(), default=str))
+    short = too_few_steps(info.get("n_steps") or 0) if info.get("kind") == "sweep" else None
     return {
         "ok": True,
         "run": run_dir.name,
         "error": "",
         "summary": report.summary(),
-        "info": json.loads(json.dumps(report.to_dict(), default=str)),
+        "info": info,
+        "no_diagnosis": short or "",
     }
 
 

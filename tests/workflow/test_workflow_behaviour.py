@@ -99,6 +99,20 @@ def test_dropped_in_run_and_broken_run(tmp_path):
     assert "broken_run" in html and "Runs that could not be used" in html
     assert 'id="run-new_sweep"' in html
 
+    # a sweep too short to diagnose (2 Gamma steps): every product but the diagnosis,
+    # and the report says why (before, its diagnose job failed and stopped the report)
+    short = work / "raw" / "short_sweep"
+    shutil.copytree(REPO / "raw" / "accel_g2-4", short)
+    spec = (short / "run.yaml").read_text().splitlines()
+    steps = [i for i, line in enumerate(spec) if line.startswith("- {t_s:")]
+    (short / "run.yaml").write_text("\n".join(spec[: steps[2]] + spec[steps[-1] + 1 :]) + "\n")
+    snakemake(work, "--keep-going", check=False)
+    assert (work / "results" / "runs" / "short_sweep" / "compare.parquet").exists()
+    assert not (work / "results" / "runs" / "short_sweep" / "diagnosis.json").exists()
+    html = (work / "results" / "report" / "report.html").read_text()
+    assert 'id="run-short_sweep"' in html
+    assert "diagnosis needs at least 3 Gamma steps, the run has 2" in html
+
 
 def test_snakemake_lint_and_snakefmt_are_clean():
     lint = subprocess.run(

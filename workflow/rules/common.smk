@@ -51,6 +51,12 @@ def run_ok(run):
         return json.load(fh)["ok"]
 
 
+def run_diagnosable(run):
+    """True unless the run's check found it too short to diagnose (no_diagnosis)."""
+    with open(checkpoints.check_run.get(run=run).output[0]) as fh:
+        return not json.load(fh).get("no_diagnosis")
+
+
 def calibration_run_for(sweep):
     """The drop run whose calibration feeds this sweep's models, or None."""
     cal = config.get("calibration", {})
@@ -89,9 +95,14 @@ def sweep_products(run):
         f"{RES}/runs/{run}/energy.parquet",
     ]
     out += [f"{RES}/runs/{run}/sim/{v}.parquet" for v in VARIANTS]
-    if config["diagnosis"]["enabled"]:
-        out.append(f"{RES}/runs/{run}/diagnosis.json")
-    out += [f"{RES}/figures/{run}/{fig}.png" for fig in SWEEP_FIGURES]
+    if config["diagnosis"]["enabled"] and run_diagnosable(run):
+        out.append(f"{RES}/runs/{run}/diagnosis.json")  # a too-short run gets the rest
+    diagnosable = run_diagnosable(run)
+    out += [
+        f"{RES}/figures/{run}/{fig}.png"
+        for fig in SWEEP_FIGURES
+        if diagnosable or fig != "fig_gap_diagnosis"
+    ]
     if run in ACCEL_RUNS:
         out.append(f"{RES}/figures/{run}/fig04_accelerometer.png")
     return out

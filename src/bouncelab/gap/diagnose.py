@@ -43,6 +43,7 @@ from bouncelab.gap.fit import (
     objective_noise,
     poorly_identified,
     problem_cycles,
+    too_few_steps,
 )
 from bouncelab.gap.regions import segment_regions
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
@@ -313,11 +314,9 @@ def diagnose_flights(
         n_members=fit_settings.n_members,
         heldout_every=fit_settings.heldout_every,
     )
-    if problem.heldout.sum() < 1 or problem.fit.sum() < 2:
-        raise BouncelabError(
-            run.yaml_path,
-            f"diagnosis needs at least 3 Gamma steps, the run has {len(problem.steps)}",
-        )
+    short = too_few_steps(len(problem.steps), fit_settings.heldout_every)
+    if short:
+        raise BouncelabError(run.yaml_path, short)
     floor = problem.mean(problem.floor, problem.heldout)
 
     fixed: dict = {}

@@ -434,6 +434,19 @@ def heldout_mask(n_steps: int, every: int = 3) -> np.ndarray:
     return idx % every == every // 2
 
 
+def too_few_steps(n_steps: int, every: int = 3) -> str | None:
+    """Why a run of ``n_steps`` Gamma steps cannot be diagnosed, or None when it can.
+
+    The fits need two fit steps and one held-out step (:func:`heldout_mask`), so with
+    ``every = 3`` at least 3 steps.  One rule for the diagnosis, the pipeline's DAG and
+    the report.
+    """
+    held = heldout_mask(int(n_steps), every)
+    if held.sum() < 1 or (~held).sum() < 2:
+        return f"diagnosis needs at least 3 Gamma steps, the run has {int(n_steps)}"
+    return None
+
+
 def continuation_gamma(problem: Problem) -> float | None:
     """Nominal Gamma up to which a joint fit of ``problem`` first searches
     (:func:`fit_model`'s ``continuation``), or None when the run does not call for it.

@@ -224,9 +224,12 @@ def _params_text(params: dict, ci: dict | None = None) -> str:
     return ", ".join(parts) or "-"
 
 
-def diagnosis_blocks(results: Path, run: str, captions: Path) -> list[dict]:
+def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str = "") -> list[dict]:
     """The gap diagnosis of a sweep run: figure, verdict, candidates, accepted effects,
-    regions; or a note saying it has not been computed."""
+    regions; or a note saying why it has not been computed (``no_diagnosis``: the
+    check's reason, e.g. too few Gamma steps)."""
+    if no_diagnosis:
+        return [{"type": "note", "text": f"Gap diagnosis: not computed: {no_diagnosis}."}]
     diag = _read_json(results / "runs" / run / "diagnosis.json")
     if not diag:
         return [
@@ -542,7 +545,7 @@ def build_context(
             if b:
                 blocks.append(b)
         blocks.append({"type": "heading", "id": f"diag-{run}", "text": "Gap diagnosis"})
-        blocks.extend(diagnosis_blocks(results, run, captions))
+        blocks.extend(diagnosis_blocks(results, run, captions, checks[run].get("no_diagnosis", "")))
         sections.append({"id": f"run-{run}", "title": f"Sweep run {run}", "blocks": blocks})
 
     sections.append(

@@ -65,6 +65,7 @@ EDGE_WARMUP = 256  # samples the edge pass runs before a piece to settle its sta
 ORPHAN_SHARE = 0.25  # a level jump: more than this share of a block's samples near
 ORPHAN_SPREAD = 0.1  # ... neither tracked level, gathered within this share of the gap,
 ORPHAN_BLOCKS = 2  # ... in this many consecutive blocks
+ORPHAN_MIN_POINTS = 8  # strided samples a block needs to be judged (a short last block)
 MAX_LEVEL_JUMPS = 8  # splits at most per recording side
 TRACKED_JUMP = 0.15  # ... or a tracked level that moves this share of the gap in a block
 JUMP_POINTS = 100_000  # strided samples read for level jumps
@@ -529,7 +530,7 @@ def level_jump(x: np.ndarray, det: Detection) -> int | None:
     g = np.abs(det.contact_v - det.open_v)
     with np.errstate(invalid="ignore", divide="ignore"):
         spread = np.sqrt(np.maximum(s2 / k - (s1 / k) ** 2, 0.0))
-        bad = (k > ORPHAN_SHARE * cnt) & (k >= 8) & (spread < ORPHAN_SPREAD * g)
+        bad = (k > ORPHAN_SHARE * cnt) & (k >= ORPHAN_MIN_POINTS) & (spread < ORPHAN_SPREAD * g)
     # runs of bad blocks: [starts[i], ends[i])
     edges = np.diff(np.concatenate(([0], bad.astype(np.int8), [0])))
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
@@ -540,7 +541,8 @@ def level_jump(x: np.ndarray, det: Detection) -> int | None:
         # levels tracked right after the run, wrong during it (the start's levels were a
         # mixture of both sides'): the jump ends the run; else the tracking lost a level
         # at the jump and never found it again: the jump starts the run
-        cuts.append(r1 * det.block if r1 < nb else max(r0 - 1, 1) * det.block)
+        to_end = not (cnt[r1:] >= ORPHAN_MIN_POINTS).any()  # no judged block after it
+        cuts.append(max(r0 - 1, 1) * det.block if to_end else r1 * det.block)
     # a jump the tracking followed: levels interpolated across it blur one block
     followed = np.flatnonzero(
         (_level_step(det.open_v) > TRACKED_JUMP * g[:-1])

@@ -45,16 +45,20 @@ wildcard_constraints:
     variant="|".join(re.escape(v) for v in VARIANTS),
 
 
-def run_ok(run):
-    """True when the run's check passed (evaluated after the checkpoint ran)."""
+def check_verdict(run):
+    """The run's check.json (evaluated after the checkpoint ran)."""
     with open(checkpoints.check_run.get(run=run).output[0]) as fh:
-        return json.load(fh)["ok"]
+        return json.load(fh)
+
+
+def run_ok(run):
+    """True when the run's check passed."""
+    return check_verdict(run)["ok"]
 
 
 def run_diagnosable(run):
     """True unless the run's check found it too short to diagnose (no_diagnosis)."""
-    with open(checkpoints.check_run.get(run=run).output[0]) as fh:
-        return not json.load(fh).get("no_diagnosis")
+    return not check_verdict(run).get("no_diagnosis")
 
 
 def calibration_run_for(sweep):
@@ -95,9 +99,9 @@ def sweep_products(run):
         f"{RES}/runs/{run}/energy.parquet",
     ]
     out += [f"{RES}/runs/{run}/sim/{v}.parquet" for v in VARIANTS]
-    if config["diagnosis"]["enabled"] and run_diagnosable(run):
-        out.append(f"{RES}/runs/{run}/diagnosis.json")  # a too-short run gets the rest
-    diagnosable = run_diagnosable(run)
+    diagnosable = run_diagnosable(run)  # a too-short run gets the rest
+    if config["diagnosis"]["enabled"] and diagnosable:
+        out.append(f"{RES}/runs/{run}/diagnosis.json")
     out += [
         f"{RES}/figures/{run}/{fig}.png"
         for fig in SWEEP_FIGURES

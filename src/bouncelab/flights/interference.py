@@ -227,11 +227,10 @@ def _windows(n: int, length: int, count: int) -> list[tuple[int, int]]:
     return [(int(a), int(a) + length) for a in starts]
 
 
-def _windows_rms(x, windows, lo, hi, noise_v, sample_rate_hz, guard, per_state):
+def _windows_rms(x, windows, lo, hi, noise_v, sample_rate_hz, guard, slow, per_state):
     """rms of :func:`fast_interference` over the used samples of ``windows`` (each away
-    from its ends, where the slow part is cut short), volts, shape (3,): on the lower
-    level's samples, on the upper level's, on both."""
-    slow = _window(sample_rate_hz, SLOW_S, _window(sample_rate_hz, WINDOW_S, 5))
+    from its ends, where the ``slow`` window, samples, is cut short), volts, shape (3,):
+    on the lower level's samples, on the upper level's, on both."""
     sq = np.zeros(3)
     cnt = np.zeros(3)
     for a, b in windows:
@@ -295,12 +294,10 @@ def remove_interference(
     length = max(4 * slow, int(GATE_WINDOW_S * sample_rate_hz))
     windows = _windows(n, length, GATE_WINDOWS)
     guard = guard_samples(np.concatenate([decay_ratios(x[a:b], lo, hi) for a, b in windows]))
-    rms = _windows_rms(x, windows, lo, hi, noise_v, sample_rate_hz, guard, False)
-    if not interference_gate(rms[2], hi - lo, noise_v, w):
+    read = (x, windows, lo, hi, noise_v, sample_rate_hz, guard, slow)
+    if not interference_gate(_windows_rms(*read, False)[2], hi - lo, noise_v, w):
         return x, np.zeros(nb)
-    per_state = hum_per_state(
-        _windows_rms(x, windows, lo, hi, noise_v, sample_rate_hz, guard, True)[:2]
-    )
+    per_state = hum_per_state(_windows_rms(*read, True)[:2])
     margin = slow // 2 + w + guard
     out = np.array(x, dtype=np.float64)
     sq_b = np.zeros(nb)

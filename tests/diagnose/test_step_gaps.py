@@ -200,7 +200,7 @@ def test_a_pool_compiles_the_kernels_with_the_types_of_an_evaluation(
 
         return call
 
-    for name in ("run_many", "close_contacts"):
+    for name in ("run_many", "protocol_rows"):
         monkeypatch.setattr(kernels, name, recorder(name, getattr(kernels, name)))
     monkeypatch.setattr(fit, "ensemble_gaps", recorder("ensemble_gaps", fit.ensemble_gaps))
     monkeypatch.setattr(fit, "_WORKER", {"problem": problem, "buffer": OutputBuffer()})
@@ -208,7 +208,7 @@ def test_a_pool_compiles_the_kernels_with_the_types_of_an_evaluation(
     fit._worker_compile("gaps")
     warmed = {k: set(v) for k, v in seen.items()}
     step_gaps(problem, Model.parse("friction+restitution", {"mu": 0.2, "e": 0.45}))
-    expected = {"run_many", "ensemble_gaps"} | ({"close_contacts"} if min_contact else set())
+    expected = {"run_many", "protocol_rows", "ensemble_gaps"}
     assert set(warmed) == expected
     assert seen == warmed  # the evaluation brought no new argument types
 

@@ -38,6 +38,44 @@ def test_zero_contact_changes_nothing():
     np.testing.assert_array_equal(t_open, t)
 
 
+@pytest.mark.parametrize("min_contact", [0.0, 0.1])
+def test_protocol_rows_are_the_gathered_rows_with_their_contacts_closed(min_contact):
+    """The fits' one-pass reading of the kernel's buffer (``protocol_rows``) gives, bit
+    for bit, the written rows of each trajectory's block gathered column by column and
+    then passed through ``close_contacts``; an empty block and the unwritten room between
+    blocks are skipped; without a contact time the rows are read as written (the
+    circuit's ``landing - opens`` could round a flight time). The same flights as the
+    hand-worked case above (member 0), a member with no rows, and a member of two
+    flights."""
+    max_rec = 8
+    blocks = [
+        ([0.0, 1.0, 2.0, 2.05, 3.5], [1.0, 1.0, 0.05, 0.95, 1.0], [0, 0, 1, 1, 2]),
+        ([], [], []),
+        ([0.25, 0.9], [0.3, 0.7], [0, 1]),
+    ]
+    out = np.full((K.NCOL, max_rec * len(blocks)), np.nan)  # unwritten room: never read
+    rows = np.array([len(b[0]) for b in blocks], dtype=np.int64)
+    for j, (tto, T, step) in enumerate(blocks):
+        at = slice(j * max_rec, j * max_rec + len(tto))
+        out[K.C_TTO, at], out[K.C_T, at], out[K.C_STEP, at] = tto, T, step
+        out[K.C_START, at] = j
+        out[K.C_SETTLED, at] = [1.0 if k % 2 else 0.0 for k in range(len(tto))]
+    member, step, T, settled = K.protocol_rows(out, rows, max_rec, min_contact)
+
+    keep = np.concatenate([np.arange(j * max_rec, j * max_rec + r) for j, r in enumerate(rows)])
+    expected_member = out[K.C_START, keep].astype(np.int64)
+    seen, _, T_seen = K.close_contacts(expected_member, out[K.C_TTO, keep], out[K.C_T, keep],
+                                       min_contact)  # fmt: skip
+    if min_contact == 0.0:
+        T_seen = out[K.C_T, keep]
+    np.testing.assert_array_equal(member, expected_member[seen])
+    np.testing.assert_array_equal(step, out[K.C_STEP, keep].astype(np.int64)[seen])
+    np.testing.assert_array_equal(T, T_seen[seen])
+    np.testing.assert_array_equal(settled, (out[K.C_SETTLED, keep] > 0.5)[seen])
+    assert member.dtype == step.dtype == np.int64 and settled.dtype == np.bool_
+    assert len(T) == (7 if min_contact == 0.0 else 6)  # the rebound inside the contact hides
+
+
 @pytest.fixture(scope="module")
 def bouncing():
     """Restitution 0.5 at Gamma 2-3: every landing is a bounce, chatter included."""

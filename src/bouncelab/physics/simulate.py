@@ -338,23 +338,8 @@ def protocol_flight_times(
         if not np.any(status == K.ST_FULL):
             break
         max_rec *= 4
-    # the written rows of each member's block, by index (fancy indexing copies them out
-    # of the buffer)
-    keep = np.concatenate([np.arange(i * max_rec, i * max_rec + r) for i, r in enumerate(rows)])
-    cols = {
-        "member": (K.C_START, np.int64),
-        "step": (K.C_STEP, np.int64),
-        "T": (K.C_T, np.float64),
-    }
-    res = {k: out[c][keep].astype(t) for k, (c, t) in cols.items()}
-    res["settled"] = out[K.C_SETTLED][keep] > 0.5
-    if min_contact > 0.0:
-        seen, _t_open, T_seen = K.close_contacts(
-            res["member"], out[K.C_TTO][keep], res["T"], float(min_contact)
-        )
-        res["T"] = T_seen
-        res = {k: v[seen] for k, v in res.items()}
-    return res
+    member, step, T, settled = K.protocol_rows(out, rows, max_rec, float(min_contact))
+    return {"member": member, "step": step, "T": T, "settled": settled}
 
 
 def seen_flights(sim: pd.DataFrame, min_contact: float) -> pd.DataFrame:

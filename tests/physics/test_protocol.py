@@ -166,3 +166,33 @@ def test_the_fits_kernel_skips_only_the_energy_of_rides(name, params):
     assert cols[0.0][K.C_EFRIC].sum() < cols[1.0][K.C_EFRIC].sum()
     fits = protocol_flight_times(model, gammas, cycles, 5)
     np.testing.assert_array_equal(fits["T"], cols[1.0][K.C_T])
+
+
+def test_the_fits_kernel_writes_only_the_columns_the_fits_read():
+    """With ``P_ALLCOLS`` 0 (``protocol_flight_times``, every fit's evaluation) the kernel
+    writes only ``FIT_COLUMNS``, the same bits as the full kernel's; every other column
+    keeps what the buffer held (here NaN). Reference: the full kernel on the same
+    trajectory (restitution with a harmonic: chatter, rides and a non-sine plate)."""
+    from bouncelab.physics.simulate import _protocol_steps, kernel_params
+
+    model = Model.parse("restitution+harmonic", {"e": 0.4, "k": 2.0, "a": 0.05, "psi": 1.0})
+    gammas, cycles = np.array([1.8, 2.6, 3.4, 4.2]), np.array([30, 30, 30, 30])
+    g, step_end = _protocol_steps(gammas, cycles, 5)
+    hk, ha, hp = model.harmonic_arrays()
+    max_rec = int(32 * step_end[-1] + 64)
+    cols = {}
+    for all_cols in (1.0, 0.0):
+        par = kernel_params(model)
+        par[K.P_ALLCOLS] = all_cols
+        out = np.full((K.NCOL, max_rec), np.nan)
+        (rows,), _ = K.run_many(
+            par, hk, ha, hp, model.gamma_true(g)[None, :], g[None, :], step_end, True,
+            np.zeros(1), np.zeros(1), np.zeros(1), 0, max_rec, 5, np.zeros(1), out,
+        )  # fmt: skip
+        assert rows > 100
+        cols[all_cols] = out[:, :rows]
+    fit = list(K.FIT_COLUMNS)
+    np.testing.assert_array_equal(cols[0.0][fit], cols[1.0][fit])
+    others = [c for c in range(K.NCOL) if c not in K.FIT_COLUMNS]
+    assert np.isnan(cols[0.0][others]).all()
+    assert not np.isnan(cols[1.0]).any()

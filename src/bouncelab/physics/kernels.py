@@ -38,7 +38,8 @@ P_RIDE = 9  # longest ride searched for a takeoff (rad) before declaring the bod
 P_FAST = 10  # 1.0: pure sine plates use fly_sine; 0.0: the general solver fly everywhere
 P_LOAD = 11  # ride_load: share of a riding body's contact force that loads the armature
 P_ENERGY = 12  # 1.0: the energy columns complete; 0.0: friction's ride term skipped (fits)
-NPAR = 13
+P_ALLCOLS = 13  # 1.0: every output column written; 0.0: only FIT_COLUMNS (fits)
+NPAR = 14
 
 # --- output columns -----------------------------------------------------------------
 C_GAMMA = 0  # stated Gamma at takeoff
@@ -60,6 +61,12 @@ C_FLIGHT = 15  # flight index in the trajectory (skipped transients included)
 C_NSTEPS = 16  # plate evaluations spent on this flight's landing search (diagnostic)
 C_TAIL = 17  # duration (rad) of the summed chatter tail after this flight's landing, else 0
 NCOL = 18
+
+#: The columns a fit reads (:func:`protocol_rows`). Why a fit's kernel writes only these:
+#: each column is its own row of ``out``, megabytes from the next, so every flight's 18
+#: stores touched 18 pages; 5 take about a tenth off a friction + restitution + harmonic
+#: evaluation (session 35).
+FIT_COLUMNS = (C_T, C_TTO, C_START, C_STEP, C_SETTLED)
 
 HIST = 4  # recent flights remembered for the guess of the next flight's duration
 
@@ -1056,11 +1063,18 @@ def ride_tv(a, b, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, m3, maxit, rp):
 
 
 @njit(cache=True, error_model="numpy")
-def emit(out, row0, rows, max_rec, row, i, n_skip):
-    """Write ``row[i]`` as the next row unless it is a skipped transient; the new row count."""
+def emit(out, row0, rows, max_rec, row, i, n_skip, all_cols):
+    """Write ``row[i]`` as the next row unless it is a skipped transient; the new row count.
+
+    ``all_cols`` False: only :data:`FIT_COLUMNS` are written (the others keep whatever
+    ``out`` held)."""
     if row[i, C_FLIGHT] >= n_skip and rows < max_rec:
-        for c in range(NCOL):
-            out[c, row0 + rows] = row[i, c]
+        if all_cols:
+            for c in range(NCOL):
+                out[c, row0 + rows] = row[i, c]
+        else:
+            for c in FIT_COLUMNS:
+                out[c, row0 + rows] = row[i, c]
         return rows + 1
     return rows
 
@@ -1136,6 +1150,7 @@ def trajectory(
 
     fast = par[P_FAST] > 0.0 and nh == 0 and not use_arm  # pure sine plate: fly_sine
     energy = par[P_ENERGY] > 0.0
+    all_cols = par[P_ALLCOLS] > 0.0
     g_al = -1.0  # Gamma of the cached curvature edges (fly_sine)
     al_u = -1.0
     al_d = -1.0
@@ -1307,7 +1322,7 @@ def trajectory(
             if not found:
                 if pend and stuck:
                     # the last flight's ride never ends: energy counted to the give-up point
-                    rows = emit(out, row0, rows, max_rec, row, rec, n_skip)
+                    rows = emit(out, row0, rows, max_rec, row, rec, n_skip, all_cols)
                 return rows, ST_STUCK if stuck else ST_END
             x0 = qa0
             v0 = qa1
@@ -1395,7 +1410,7 @@ def trajectory(
             phis = bound
         if ended:
             if pend:  # its ride ended with this takeoff: complete
-                rows = emit(out, row0, rows, max_rec, row, rec, n_skip)
+                rows = emit(out, row0, rows, max_rec, row, rec, n_skip, all_cols)
             return rows, ST_END
         if total == 0.0 and k == k_to:
             # no real flight (a touch of the takeoff line without crossing it): ride on
@@ -1404,7 +1419,7 @@ def trajectory(
             ride_search = phi + 1e-9
             continue
         if pend:
-            rows = emit(out, row0, rows, max_rec, row, rec, n_skip)
+            rows = emit(out, row0, rows, max_rec, row, rec, n_skip, all_cols)
             pend = False
             if rows >= max_rec:
                 return rows, ST_FULL
@@ -1472,7 +1487,7 @@ def trajectory(
             chatter = stick_here
             tq0, tq1, tq2, tq3 = p, p1, p2, p3  # the plate at the next takeoff
             tq_ok = True
-            rows = emit(out, row0, rows, max_rec, row, cur, n_skip)
+            rows = emit(out, row0, rows, max_rec, row, cur, n_skip, all_cols)
             if rows >= max_rec:
                 return rows, ST_FULL
             continue
@@ -1584,7 +1599,7 @@ def protocol_rows(out, rows, max_rec, min_contact):
     instead of gathering each column out of the buffer and filtering it again: that was
     a tenth of a fit's evaluation, spent on one core. Returns ``(member, step, T,
     settled)``: int64, int64, float64 (rad) and bool arrays of one length, in time order
-    within each trajectory.
+    within each trajectory. Reads :data:`FIT_COLUMNS` only.
     """
     n_all = 0
     for b in range(rows.shape[0]):

@@ -88,6 +88,7 @@ def kernel_params(model: Model, fast: bool = True) -> np.ndarray:
     par[K.P_RIDE] = RIDE_CYCLES * 2.0 * math.pi
     par[K.P_FAST] = 1.0 if fast else 0.0
     par[K.P_ENERGY] = 1.0
+    par[K.P_ALLCOLS] = 1.0
     return par
 
 
@@ -323,6 +324,7 @@ def protocol_flight_times(
     par = kernel_params(model)
     par[K.P_EPS] = float(chatter_eps)
     par[K.P_ENERGY] = 0.0  # flight times only: the energy columns are not read
+    par[K.P_ALLCOLS] = 0.0  # nor any column but those protocol_rows reads
     # room for chatter at once: np.empty only maps pages, so unwritten room costs nothing,
     # while a rerun after a full buffer costs a whole simulation
     max_rec = int(32 * step_end[-1] + 64)

@@ -123,6 +123,29 @@ def test_chatter_heavy_protocol_grows_its_buffer():
     assert df["chatter"].any()
 
 
+def _kernel_columns(model, setting: int, value: float, fill: float = 0.0) -> np.ndarray:
+    """The kernel's written columns, shape (NCOL, rows), for one trajectory of ``model``
+    through Gamma 1.8-4.2 (4 steps of 30 cycles, 5 settle) with ``par[setting] = value``
+    and the buffer filled with ``fill`` beforehand."""
+    from bouncelab.physics.simulate import _protocol_steps, kernel_params
+
+    g, step_end = _protocol_steps(GAMMAS_4, np.array([30, 30, 30, 30]), 5)
+    hk, ha, hp = model.harmonic_arrays()
+    max_rec = int(32 * step_end[-1] + 64)
+    par = kernel_params(model)
+    par[setting] = value
+    out = np.full((K.NCOL, max_rec), fill)
+    (rows,), (status,) = K.run_many(
+        par, hk, ha, hp, model.gamma_true(g)[None, :], g[None, :], step_end, True,
+        np.zeros(1), np.zeros(1), np.zeros(1), 0, max_rec, 5, np.zeros(1), out,
+    )  # fmt: skip
+    assert status != K.ST_FULL and rows > 100
+    return out[:, :rows]
+
+
+GAMMAS_4 = np.array([1.8, 2.6, 3.4, 4.2])
+
+
 @pytest.mark.parametrize(
     "name, params",
     [
@@ -139,32 +162,14 @@ def test_the_fits_kernel_skips_only_the_energy_of_rides(name, params):
     a walk between the plate's turning points. Reference: the full kernel, bit for bit
     for the flights (times, phases, states, steps); the friction loss does differ, so the
     term was skipped."""
-    from bouncelab.physics.simulate import (
-        _protocol_steps,
-        kernel_params,
-        protocol_flight_times,
-    )
+    from bouncelab.physics.simulate import protocol_flight_times
 
     model = Model.parse(name, params)
-    gammas, cycles = np.array([1.8, 2.6, 3.4, 4.2]), np.array([30, 30, 30, 30])
-    g, step_end = _protocol_steps(gammas, cycles, 5)
-    hk, ha, hp = model.harmonic_arrays()
-    max_rec = int(32 * step_end[-1] + 64)
-    cols = {}
-    for energy in (1.0, 0.0):
-        par = kernel_params(model)
-        par[K.P_ENERGY] = energy
-        out = np.zeros((K.NCOL, max_rec))
-        (rows,), (status,) = K.run_many(
-            par, hk, ha, hp, model.gamma_true(g)[None, :], g[None, :], step_end, True,
-            np.zeros(1), np.zeros(1), np.zeros(1), 0, max_rec, 5, np.zeros(1), out,
-        )  # fmt: skip
-        assert status != K.ST_FULL and rows > 100
-        cols[energy] = out[:, :rows]
+    cols = {energy: _kernel_columns(model, K.P_ENERGY, energy) for energy in (1.0, 0.0)}
     dynamics = [K.C_T, K.C_PHI0, K.C_PHIL, K.C_VIMP, K.C_TTO, K.C_X0, K.C_V0, K.C_STEP]
     np.testing.assert_array_equal(cols[0.0][dynamics], cols[1.0][dynamics])
     assert cols[0.0][K.C_EFRIC].sum() < cols[1.0][K.C_EFRIC].sum()
-    fits = protocol_flight_times(model, gammas, cycles, 5)
+    fits = protocol_flight_times(model, GAMMAS_4, np.array([30, 30, 30, 30]), 5)
     np.testing.assert_array_equal(fits["T"], cols[1.0][K.C_T])
 
 
@@ -173,24 +178,8 @@ def test_the_fits_kernel_writes_only_the_columns_the_fits_read():
     writes only ``FIT_COLUMNS``, the same bits as the full kernel's; every other column
     keeps what the buffer held (here NaN). Reference: the full kernel on the same
     trajectory (restitution with a harmonic: chatter, rides and a non-sine plate)."""
-    from bouncelab.physics.simulate import _protocol_steps, kernel_params
-
     model = Model.parse("restitution+harmonic", {"e": 0.4, "k": 2.0, "a": 0.05, "psi": 1.0})
-    gammas, cycles = np.array([1.8, 2.6, 3.4, 4.2]), np.array([30, 30, 30, 30])
-    g, step_end = _protocol_steps(gammas, cycles, 5)
-    hk, ha, hp = model.harmonic_arrays()
-    max_rec = int(32 * step_end[-1] + 64)
-    cols = {}
-    for all_cols in (1.0, 0.0):
-        par = kernel_params(model)
-        par[K.P_ALLCOLS] = all_cols
-        out = np.full((K.NCOL, max_rec), np.nan)
-        (rows,), _ = K.run_many(
-            par, hk, ha, hp, model.gamma_true(g)[None, :], g[None, :], step_end, True,
-            np.zeros(1), np.zeros(1), np.zeros(1), 0, max_rec, 5, np.zeros(1), out,
-        )  # fmt: skip
-        assert rows > 100
-        cols[all_cols] = out[:, :rows]
+    cols = {a: _kernel_columns(model, K.P_ALLCOLS, a, np.nan) for a in (1.0, 0.0)}
     fit = list(K.FIT_COLUMNS)
     np.testing.assert_array_equal(cols[0.0][fit], cols[1.0][fit])
     others = [c for c in range(K.NCOL) if c not in K.FIT_COLUMNS]

@@ -64,8 +64,8 @@ NCOL = 18
 
 #: The columns a fit reads (:func:`protocol_rows`). Why a fit's kernel writes only these:
 #: each column is its own row of ``out``, megabytes from the next, so every flight's 18
-#: stores touched 18 pages; 5 take about a tenth off a friction + restitution + harmonic
-#: evaluation (session 35).
+#: stores touched 18 pages; 5 take 7-10 % off one friction + restitution + harmonic
+#: evaluation (session 35; within the noise of whole diagnoses).
 FIT_COLUMNS = (C_T, C_TTO, C_START, C_STEP, C_SETTLED)
 
 HIST = 4  # recent flights remembered for the guess of the next flight's duration
@@ -1601,9 +1601,7 @@ def protocol_rows(out, rows, max_rec, min_contact):
     settled)``: int64, int64, float64 (rad) and bool arrays of one length, in time order
     within each trajectory. Reads :data:`FIT_COLUMNS` only.
     """
-    n_all = 0
-    for b in range(rows.shape[0]):
-        n_all += rows[b]
+    n_all = rows.sum()
     member = np.empty(n_all, dtype=np.int64)
     step = np.empty(n_all, dtype=np.int64)
     T = np.empty(n_all)

@@ -79,6 +79,12 @@ CASES = {
     "friction_coarse_g0-6": {"g1": 6.0, "dg": 0.25, "mu": 0.25, "seed": 54},
     "friction_six_steps": {"g0": 1.5, "g1": 4.0, "dg": 0.5, "step_s": 4.0, "mu": 0.2, "seed": 58},
     "friction_long_steps": {"g0": 1.0, "g1": 4.0, "dg": 0.5, "step_s": 40.0, "mu": 0.2, "seed": 63},
+    # swept up and back down in one run (session 36): every Gamma but the top one twice,
+    # the second time on the branch the way down leaves (restitution: past the doublings)
+    "friction_up_down": {"g0": 1.0, "g1": 4.0, "dg": 0.1, "mu": 0.2, "up_down": True, "seed": 64},
+    "restitution_up_down": {
+        "g0": 2.0, "g1": 6.0, "dg": 0.1, "e": 0.4, "up_down": True, "seed": 65,
+    },
     "gamma_scale_40hz_short_steps": {"s": 1.1, "step_s": 1.0, "f": 40.0, "seed": 57},
     "restitution_chaotic_g5-8": {"g0": 5.0, "g1": 8.0, "dg": 0.1, "e": 0.4, "seed": 61},
     "friction_8khz": {"fs": 8000.0, "mu": 0.25, "seed": 62},

@@ -10,7 +10,8 @@ what the diagnosis assumes of our rig shows up:
 - fixed-step integration (``dt`` = 2 us) of flight under gravity and Coulomb friction,
   the armature propagated exactly over each step;
 - Gamma switched instantly at each step's ``t_s``, wherever the drive phase is (``t0``
-  puts the steps off the drive cycles);
+  puts the steps off the drive cycles); swept up, down, or up and back down
+  (``up_down``: every Gamma but the top one twice, on both branches of a hysteresis);
 - a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
 - the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV;
 - outside the library: a sensor delay, a restitution that changes with impact speed,
@@ -169,7 +170,9 @@ def make_case(out: Path, **opt) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     w = 2.0 * math.pi * o["f"]
     gammas = np.round(np.arange(o["g0"], o["g1"] + 1e-9, o["dg"]), 6)
-    if o["descending"]:  # swept down: the other branch of every hysteresis loop
+    if o["up_down"]:  # up, then down again: every Gamma but the top twice, as labs sweep
+        gammas = np.concatenate([gammas, gammas[-2::-1]])
+    elif o["descending"]:  # swept down: the other branch of every hysteresis loop
         gammas = gammas[::-1]
     t_s = o["t0"] + o["step_s"] * np.arange(gammas.size)
     t_end = float(t_s[-1] + o["step_s"])
@@ -251,7 +254,7 @@ DEFAULTS = {
     "mass_ratio": 0.0, "f_ratio": 0.6, "zeta": 0.05,
     "contact_s": 8e-5, "stick_v": 2e-4, "noise_v": 0.02, "delay_s": 0.0,
     "contact_high": False, "format": "wav", "seed": 1, "dt": 2e-6,
-    "descending": False, "no_drive": False,
+    "descending": False, "up_down": False, "no_drive": False,
     "e_slope": 0.0, "e_ref_v": 0.3, "vib_rms": 0.0,
 }  # fmt: skip
 

@@ -85,6 +85,10 @@ CASES = {
     "restitution_up_down": {
         "g0": 2.0, "g1": 6.0, "dg": 0.1, "e": 0.4, "up_down": True, "seed": 65,
     },
+    # stepped by hand: every step's length drawn within 40 % of 2 s (36-84 cycles)
+    "friction_restitution_uneven_steps": {
+        "g1": 5.0, "mu": 0.2, "e": 0.4, "step_jitter": 0.4, "seed": 66,
+    },
     "gamma_scale_40hz_short_steps": {"s": 1.1, "step_s": 1.0, "f": 40.0, "seed": 57},
     "restitution_chaotic_g5-8": {"g0": 5.0, "g1": 8.0, "dg": 0.1, "e": 0.4, "seed": 61},
     "friction_8khz": {"fs": 8000.0, "mu": 0.25, "seed": 62},

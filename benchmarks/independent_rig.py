@@ -12,6 +12,7 @@ what the diagnosis assumes of our rig shows up:
 - Gamma switched instantly at each step's ``t_s``, wherever the drive phase is (``t0``
   puts the steps off the drive cycles); swept up, down, or up and back down
   (``up_down``: every Gamma but the top one twice, on both branches of a hysteresis);
+  steps of one length, or of lengths within ``step_jitter`` of it (a hand-stepped sweep);
 - a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
 - the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV;
 - outside the library: a sensor delay, a restitution that changes with impact speed,
@@ -174,8 +175,15 @@ def make_case(out: Path, **opt) -> dict:
         gammas = np.concatenate([gammas, gammas[-2::-1]])
     elif o["descending"]:  # swept down: the other branch of every hysteresis loop
         gammas = gammas[::-1]
-    t_s = o["t0"] + o["step_s"] * np.arange(gammas.size)
-    t_end = float(t_s[-1] + o["step_s"])
+    if o["step_jitter"]:  # stepped by hand: each length within +- step_jitter of step_s
+        # (a stream of its own, so that the recording's noise stays the seed's)
+        share = np.random.default_rng([o["seed"], 3]).uniform(-1.0, 1.0, gammas.size)
+        durations = o["step_s"] * (1.0 + o["step_jitter"] * share)
+        t_s = o["t0"] + np.concatenate([[0.0], np.cumsum(durations)[:-1]])
+        t_end = float(t_s[-1] + durations[-1])
+    else:
+        t_s = o["t0"] + o["step_s"] * np.arange(gammas.size)
+        t_end = float(t_s[-1] + o["step_s"])
     amp_t = np.concatenate([[0.0], t_s])
     amp_v = np.concatenate([[0.0], o["s"] * gammas * G / w**2])
     contact, impacts = integrate(
@@ -249,7 +257,8 @@ def true_effects(o: dict) -> dict:
 
 
 DEFAULTS = {
-    "f": 30.0, "fs": 20000.0, "g0": 0.0, "g1": 4.0, "dg": 0.05, "step_s": 2.0, "t0": 0.0,
+    "f": 30.0, "fs": 20000.0, "g0": 0.0, "g1": 4.0, "dg": 0.05, "step_s": 2.0,
+    "step_jitter": 0.0, "t0": 0.0,
     "mu": 0.0, "e": 0.0, "k": 3.0, "a": 0.0, "psi": 0.0, "s": 1.0,
     "mass_ratio": 0.0, "f_ratio": 0.6, "zeta": 0.05,
     "contact_s": 8e-5, "stick_v": 2e-4, "noise_v": 0.02, "delay_s": 0.0,

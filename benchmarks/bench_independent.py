@@ -89,6 +89,12 @@ CASES = {
     "friction_restitution_uneven_steps": {
         "g1": 5.0, "mu": 0.2, "e": 0.4, "step_jitter": 0.4, "seed": 66,
     },
+    # the seed's three effects on 3-s steps (90 cycles, cut to 75 in the fits: 7575
+    # cycles, the most a fit runs): what a lab's sweep of the seed's rig costs
+    "seed_like_long_steps": {
+        "g1": 5.0, "step_s": 3.0, "mu": 0.29, "e": 0.5, "mass_ratio": 0.04, "f_ratio": 0.6,
+        "zeta": 0.04, "seed": 67,
+    },
     "gamma_scale_40hz_short_steps": {"s": 1.1, "step_s": 1.0, "f": 40.0, "seed": 57},
     "restitution_chaotic_g5-8": {"g0": 5.0, "g1": 8.0, "dg": 0.1, "e": 0.4, "seed": 61},
     "friction_8khz": {"fs": 8000.0, "mu": 0.25, "seed": 62},

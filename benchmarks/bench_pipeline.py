@@ -24,6 +24,9 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_physics import machine_speed  # noqa: E402
+
 PARTS = ("Snakefile", "workflow", "config", "report", "profiles", "raw")
 
 
@@ -82,6 +85,9 @@ def slowest_jobs(output: str, n: int = 8) -> dict[str, float]:
 
 
 def main() -> None:
+    # the machine's speed before and after (bench_physics.machine_speed): a virtual
+    # machine's can swing by a quarter within the hour, and the full run's time with it
+    speed_before = machine_speed()
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp) / "project"
         work.mkdir()
@@ -107,6 +113,7 @@ def main() -> None:
         "cpu_count": os.cpu_count(),
         "python": platform.python_version(),
         "load_average_1min": round(os.getloadavg()[0], 2),
+        "machine_feedback_mflights_s": {"before": speed_before, "after": machine_speed()},
     }
     print(json.dumps(result, indent=1))
     out_path = REPO / "benchmarks" / "results" / "pipeline.json"

@@ -181,7 +181,7 @@ def make_case(out: Path, **opt) -> dict:
         durations = o["step_s"] * (1.0 + o["step_jitter"] * share)
         t_s = o["t0"] + np.concatenate([[0.0], np.cumsum(durations)[:-1]])
         t_end = float(t_s[-1] + durations[-1])
-    else:
+    else:  # the product, not a sum of lengths: the recorded cases' step times to the bit
         t_s = o["t0"] + o["step_s"] * np.arange(gammas.size)
         t_end = float(t_s[-1] + o["step_s"])
     amp_t = np.concatenate([[0.0], t_s])

@@ -123,13 +123,18 @@ def test_chatter_heavy_protocol_grows_its_buffer():
     assert df["chatter"].any()
 
 
+#: The four-step protocol of the kernel-column tests: Gamma and cycles per step.
+GAMMAS_4 = np.array([1.8, 2.6, 3.4, 4.2])
+CYCLES_4 = np.array([30, 30, 30, 30])
+
+
 def _kernel_columns(model, setting: int, value: float, fill: float = 0.0) -> np.ndarray:
     """The kernel's written columns, shape (NCOL, rows), for one trajectory of ``model``
     through Gamma 1.8-4.2 (4 steps of 30 cycles, 5 settle) with ``par[setting] = value``
     and the buffer filled with ``fill`` beforehand."""
     from bouncelab.physics.simulate import _protocol_steps, kernel_params
 
-    g, step_end = _protocol_steps(GAMMAS_4, np.array([30, 30, 30, 30]), 5)
+    g, step_end = _protocol_steps(GAMMAS_4, CYCLES_4, 5)
     hk, ha, hp = model.harmonic_arrays()
     max_rec = int(32 * step_end[-1] + 64)
     par = kernel_params(model)
@@ -141,9 +146,6 @@ def _kernel_columns(model, setting: int, value: float, fill: float = 0.0) -> np.
     )  # fmt: skip
     assert status != K.ST_FULL and rows > 100
     return out[:, :rows]
-
-
-GAMMAS_4 = np.array([1.8, 2.6, 3.4, 4.2])
 
 
 @pytest.mark.parametrize(
@@ -169,7 +171,7 @@ def test_the_fits_kernel_skips_only_the_energy_of_rides(name, params):
     dynamics = [K.C_T, K.C_PHI0, K.C_PHIL, K.C_VIMP, K.C_TTO, K.C_X0, K.C_V0, K.C_STEP]
     np.testing.assert_array_equal(cols[0.0][dynamics], cols[1.0][dynamics])
     assert cols[0.0][K.C_EFRIC].sum() < cols[1.0][K.C_EFRIC].sum()
-    fits = protocol_flight_times(model, GAMMAS_4, np.array([30, 30, 30, 30]), 5)
+    fits = protocol_flight_times(model, GAMMAS_4, CYCLES_4, 5)
     np.testing.assert_array_equal(fits["T"], cols[1.0][K.C_T])
 
 

@@ -16,7 +16,11 @@ what the diagnosis assumes of our rig shows up:
 - a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
 - the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV;
 - outside the library: a sensor delay, a restitution that changes with impact speed,
-  random plate vibration (a sum of sinusoids of random frequencies in 5-200 Hz).
+  random plate vibration (a sum of sinusoids of random frequencies in 5-200 Hz);
+- flaws of a lab's records, which a diagnosis should see through: a circuit that misses
+  a share of the short contacts (``lost_contacts``: the flights around each merge), and
+  each step's Gamma read off with a random relative error (``gamma_read_sd``: the
+  recording is driven at the true Gamma, ``run.yaml`` states the reading).
 
 Use: ``python benchmarks/independent_rig.py OUT_DIR [--mu 0.2 --e 0.4 ...]`` writes
 ``OUT_DIR/run.yaml`` and the recording, and ``OUT_DIR.truth.json`` beside the folder
@@ -37,6 +41,10 @@ import soundfile as sf
 import yaml
 
 G = 9.81  # m/s^2
+
+#: Longest contact the circuit can miss (``lost_contacts``): an impact's or a short ride's,
+#: not a body resting on the plate.
+LOST_CONTACT_MAX_S = 3e-3
 
 
 @numba.njit(cache=True)
@@ -192,6 +200,9 @@ def make_case(out: Path, **opt) -> dict:
         armature_step(o["f_ratio"] * w, o["zeta"], o["dt"]),
         o["e_slope"], o["e_ref_v"], *vibration(o["vib_rms"], o["seed"]),
     )  # fmt: skip
+    n_lost = 0
+    if o["lost_contacts"]:  # the circuit fails to close on some short contacts
+        contact, n_lost = lose_contacts(contact, o["lost_contacts"], o["fs"], o["seed"])
     shift = int(round(o["delay_s"] * o["fs"]))
     if shift:  # a sensor delay: the circuit reports every contact late
         contact = np.concatenate([np.ones(shift, np.float32), contact[:-shift]])
@@ -201,13 +212,17 @@ def make_case(out: Path, **opt) -> dict:
     volts = 3.3 * level + rng.normal(0.0, o["noise_v"], n)
     time_s = np.arange(n) / o["fs"]
     drive = 0.8 * np.sin(w * time_s) + rng.normal(0.0, 0.01, n)
+    stated = gammas
+    if o["gamma_read_sd"]:  # each step's Gamma read off a scope, with a relative error
+        error = np.random.default_rng([o["seed"], 5]).standard_normal(gammas.size)
+        stated = np.round(gammas * (1.0 + o["gamma_read_sd"] * error), 4)
     spec = {
         "format_version": 1,
         "kind": "sweep",
         "sample_rate_hz": int(o["fs"]),
         "drive_frequency_hz": o["f"],
         "gamma_steps": [
-            {"t_s": float(t), "gamma": float(g)} for t, g in zip(t_s, gammas, strict=True)
+            {"t_s": float(t), "gamma": float(g)} for t, g in zip(t_s, stated, strict=True)
         ],
         "settle_cycles": 10,
         "mass_kg": 0.2,
@@ -227,8 +242,28 @@ def make_case(out: Path, **opt) -> dict:
         del spec["channels"]["drive"]
     (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     truth = {**o, "impacts": int(impacts), "effects": true_effects(o), "outside": outside(o)}
+    if n_lost:
+        truth["contacts_lost"] = n_lost
     out.with_name(out.name + ".truth.json").write_text(json.dumps(truth, indent=1))
     return truth
+
+
+def lose_contacts(
+    contact: np.ndarray, share: float, fs: float, seed: int
+) -> tuple[np.ndarray, int]:
+    """``contact`` (1.0 closed, shape (n,)) with each contact shorter than
+    :data:`LOST_CONTACT_MAX_S` opened with probability ``share``, and how many were: a
+    circuit that does not close on a light touch, so the flights before and after it are
+    recorded as one."""
+    closed = contact > 0.5
+    edges = np.diff(closed.astype(np.int8), prepend=0, append=0)
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    short = (ends - starts) < LOST_CONTACT_MAX_S * fs
+    lost = short & (np.random.default_rng([seed, 4]).random(starts.size) < share)
+    out = contact.copy()
+    for a, b in zip(starts[lost], ends[lost], strict=True):
+        out[a:b] = 0.0
+    return out, int(lost.sum())
 
 
 def outside(o: dict) -> list[str]:
@@ -265,6 +300,7 @@ DEFAULTS = {
     "contact_high": False, "format": "wav", "seed": 1, "dt": 2e-6,
     "descending": False, "up_down": False, "no_drive": False,
     "e_slope": 0.0, "e_ref_v": 0.3, "vib_rms": 0.0,
+    "lost_contacts": 0.0, "gamma_read_sd": 0.0,
 }  # fmt: skip
 
 

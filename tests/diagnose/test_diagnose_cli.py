@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 
+import pandas as pd
 import pytest
 from diag_synth import duration_s, pseudo_flights, write_run
 
@@ -116,3 +117,29 @@ def test_deterministic_and_calibration_fixed(null_case):
     rest = next(c for c in a["candidates"] if c["effect"] == "restitution")
     assert rest["params"]["e"] == 0.3
     assert a["calibration"]["fixed"] is True and a["calibration"]["mu"] == 0.05
+
+
+def test_a_drive_channel_off_the_stated_frequency_is_a_warning(
+    null_case, tmp_path, monkeypatch, capsys
+):
+    """The QC table that ``extract`` writes beside the flights holds the drive channel's
+    measured frequency; 5 % off run.yaml's, the diagnosis says so first among its warnings,
+    apart in ``input_warnings``, and on stderr as a ``warning:`` line (the diagnosis of a
+    run.yaml copied from another run is of another experiment; docs/flights.md)."""
+    import bouncelab.gap.diagnose as diag
+    from bouncelab.tables import read_table
+
+    monkeypatch.setattr(diag, "FitSettings", lambda: FAST)
+    run_dir, flights = null_case
+    stated = load_run(run_dir).drive_frequency_hz
+    copied = write_table(read_table(flights), tmp_path / "flights.parquet")
+    qc = {"step": [0, 1, 2], "drive_frequency_hz": [float("nan"), 1.05 * stated, 1.05 * stated]}
+    write_table(pd.DataFrame(qc), tmp_path / "flights.qc.parquet")
+    out = tmp_path / "diag.json"
+    args = ["diagnose", str(run_dir), "--flights", str(copied), "-o", str(out), "--workers", "1"]
+    assert main(args) == 0
+    r = json.loads(out.read_text())
+    (warning,) = r["input_warnings"]
+    assert r["warnings"][0] == warning
+    assert f"runs at {1.05 * stated:.3f} Hz (median over 2 steps), +5.0 %" in warning
+    assert f"warning: {warning}" in capsys.readouterr().err.splitlines()

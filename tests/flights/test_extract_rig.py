@@ -92,7 +92,9 @@ def test_phase_and_settled(make_rig):
     cfg["shaker"] = {"feedback": False}
     cfg["protocol"] = {"gammas": [0.5, 1.6, 2.0], "cycles_per_step": 40}
     run_dir, _ = make_rig("phase", cfg)
-    flights, _ = extract_run(run_dir)
+    flights, qc = extract_run(run_dir)
+    # the drive reference's own frequency, measured per step: the rig's 30 Hz
+    assert np.allclose(qc["drive_frequency_hz"], 30.0, atol=0.01), qc["drive_frequency_hz"]
     for gamma in (1.6, 2.0):
         f = flights[(flights["gamma"] == gamma) & flights["settled"]]
         want = np.arcsin(1.29 / gamma)

@@ -6,6 +6,8 @@
 rule diagnose:
     input:
         flights=f"{RES}/runs/{{run}}/flights.parquet",
+        # read beside the flights for the drive channel's measured frequency
+        qc=f"{RES}/runs/{{run}}/flights.qc.parquet",
         calibration=calibration_input,
     output:
         report(

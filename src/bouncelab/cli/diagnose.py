@@ -80,6 +80,8 @@ def run(args) -> int:
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")
+    for warning in result.get("input_warnings", []):
+        print(f"warning: {warning}", file=sys.stderr)
     print(summary_line(out, result), file=sys.stderr)
     return 0
 

@@ -14,7 +14,13 @@ import numpy as np
 import pandas as pd
 
 from bouncelab.flights.detect import Detection, NoContactsError, detect_contacts
-from bouncelab.flights.phase import TWO_PI, fit_sine, phase_at
+from bouncelab.flights.phase import (
+    MIN_FREQUENCY_CYCLES,
+    TWO_PI,
+    dominant_frequency,
+    fit_sine,
+    phase_at,
+)
 
 FLIGHT_COLUMNS = [
     "run",
@@ -45,6 +51,7 @@ QC_COLUMNS = [
     "interference_v",
     "drive_amplitude_v",
     "drive_noise_v",
+    "drive_frequency_hz",
 ]
 
 
@@ -170,8 +177,9 @@ def _drop_steps(duration_s: float, t_first: float) -> pd.DataFrame:
     )
 
 
-def _qc_table(run_id, steps, det, fs, time_s, flights, fits, drive_present) -> pd.DataFrame:
-    """QC per step: flights, glitches, noise, level gap, contact fraction, RC, drive fit."""
+def _qc_table(run_id, steps, det, fs, time_s, flights, fits, drive_present, freqs) -> pd.DataFrame:
+    """QC per step: flights, glitches, noise, level gap, contact fraction, RC, drive fit
+    and the drive's measured frequency (``freqs``: step -> Hz)."""
     rows = []
     tau_s = det.tau_samples / fs if det is not None else np.nan
     if det is not None:
@@ -196,6 +204,7 @@ def _qc_table(run_id, steps, det, fs, time_s, flights, fits, drive_present) -> p
             "interference_v": np.nan,
             "drive_amplitude_v": np.nan,
             "drive_noise_v": np.nan,
+            "drive_frequency_hz": freqs.get(int(row.step), np.nan),
         }
         if det is not None:
             m = (centres >= row.t_start_s) & (centres < row.t_end_s)
@@ -233,6 +242,21 @@ def drive_fits(drive, steps, fs, freq_hz, time_s) -> dict:
         t = np.arange(a, b) / fs if time_s is None else time_s[a:b]
         fits[int(row.step)], _ = fit_sine(t, drive[a:b], freq_hz)
     return fits
+
+
+def drive_frequencies(drive, steps, fs, freq_hz, time_s) -> dict:
+    """The drive channel's frequency (Hz) per step (step -> Hz,
+    :func:`bouncelab.flights.phase.dominant_frequency`; NaN where it shows no clear line,
+    as with the plate at rest) for the steps of at least ``MIN_FREQUENCY_CYCLES`` cycles
+    of the stated ``freq_hz``; the samples are taken as spaced ``1 / fs``. Not the sine
+    fits' frequency: those take the stated one, and lose the signal when it is wrong."""
+    out = {}
+    n = drive.shape[0]
+    for row in steps.itertuples(index=False):
+        a, b = _step_slice(row.t_start_s, row.t_end_s, fs, time_s, n)
+        if (b - a) * freq_hz >= MIN_FREQUENCY_CYCLES * fs:
+            out[int(row.step)] = dominant_frequency(drive[a:b], fs)
+    return out
 
 
 def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -279,6 +303,7 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             raise
     drive = rec.channels.get("drive")
     fits = drive_fits(drive, steps, fs, freq, time_s) if (drive is not None and freq) else {}
+    freqs = drive_frequencies(drive, steps, fs, freq, time_s) if fits else {}
     offset = float(run.extra.get("drive_phase_offset_rad", 0.0) or 0.0)
     if det is None:
         flights = pd.DataFrame({c: [] for c in FLIGHT_COLUMNS})
@@ -290,7 +315,7 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         flights = flights_from_detection(
             det, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id
         )
-    qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None)
+    qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None, freqs)
     return flights, qc
 
 

@@ -97,3 +97,63 @@ def phase_at(t_s, fit: SineFit, freq_hz: float, offset_rad: float = 0.0) -> np.n
         return np.full(t_s.shape, np.nan)
     phi = TWO_PI * freq_hz * (t_s - fit.t_ref_s) + fit.theta - offset_rad
     return np.mod(phi, TWO_PI)
+
+
+#: Relative difference between the drive channel's frequency and run.yaml's
+#: ``drive_frequency_hz`` above which :func:`drive_frequency_warning` speaks. Why 0.5 %:
+#: a function generator is exact to far better, while a window of 30 cycles resolves the
+#: frequency to about 0.1 % (:func:`dominant_frequency`: 2 % of a bin, 1/30 of the
+#: frequency), and 0.5 % over one 60-cycle step is already 0.3 cycles of phase drift.
+DRIVE_FREQUENCY_TOLERANCE = 0.005
+
+#: Fewest whole cycles of the stated frequency a window needs for a frequency estimate.
+MIN_FREQUENCY_CYCLES = 8
+
+#: How far a spectral line must stand above the median of the spectrum (magnitudes) to
+#: be the drive's (:func:`dominant_frequency`): white noise peaks at a few times it.
+LINE_PROMINENCE = 30.0
+
+
+def dominant_frequency(y: np.ndarray, fs: float) -> float:
+    """Frequency (Hz) of the strongest spectral line of ``y`` (samples at ``fs`` Hz, shape
+    (n,)), away from DC: the peak of the Hann-windowed spectrum, refined by a parabola
+    through the logarithms of the peak bin and its neighbours (exact for a Gaussian
+    peak; for a Hann window on a sine within 2 % of a bin, 1/(n/fs) Hz).
+    NaN for fewer than 16 samples, or when the peak does not stand
+    :data:`LINE_PROMINENCE` times above the spectrum's median (noise, a plate at rest)."""
+    y = np.asarray(y, dtype=np.float64)
+    n = y.shape[0]
+    if n < 16:
+        return float("nan")
+    spec = np.abs(np.fft.rfft((y - np.mean(y)) * np.hanning(n)))
+    k = int(np.argmax(spec[2:])) + 2  # bins 0-1: what is left of the offset and drift
+    if k + 1 >= spec.shape[0] or spec[k] <= LINE_PROMINENCE * np.median(spec[2:]):
+        return float("nan")
+    a, b, c = np.log(np.maximum(spec[k - 1 : k + 2], 1e-300))
+    denom = a - 2.0 * b + c
+    shift = 0.5 * (a - c) / denom if denom < 0.0 else 0.0
+    return float((k + shift) * fs / n)
+
+
+def drive_frequency_warning(
+    measured_hz: np.ndarray, stated_hz: float, path: str = "run.yaml"
+) -> str | None:
+    """A warning when the drive channel's frequency, measured per step (``measured_hz``,
+    NaN where the plate rests or there is no drive channel), disagrees with run.yaml's
+    ``drive_frequency_hz`` by more than :data:`DRIVE_FREQUENCY_TOLERANCE` (the median
+    over the steps); None otherwise. Why: flight times in radians, the settle cycles and
+    every phase use the stated frequency, and a run.yaml copied from another run gives
+    a diagnosis of another experiment, without any error."""
+    measured = np.asarray(measured_hz, dtype=np.float64)
+    measured = measured[np.isfinite(measured)]
+    if measured.size == 0 or not stated_hz:
+        return None
+    median = float(np.median(measured))
+    off = median / float(stated_hz) - 1.0
+    if abs(off) <= DRIVE_FREQUENCY_TOLERANCE:
+        return None
+    return (
+        f"{path}: the drive channel runs at {median:.3f} Hz (median over {measured.size} "
+        f"steps), {100 * off:+.1f} % from drive_frequency_hz {float(stated_hz):g}; flight "
+        "times in radians and phases use the stated value"
+    )

@@ -738,6 +738,7 @@ def diagnose_run(
         calibration = read_calibration(calibration)
     if fix_calibration and calibration is None:
         raise BouncelabError(None, "--fix-calibration needs a calibration")
+    qc = None
     if flights is None:
         from bouncelab.flights import extract_run
 
@@ -746,7 +747,9 @@ def diagnose_run(
     else:
         table = flights if isinstance(flights, pd.DataFrame) else load_flights(flights, run.run_id)
         duration = _recording_duration(run)
-    return diagnose_flights(
+        if not isinstance(flights, pd.DataFrame):
+            qc = _qc_beside(flights)
+    result = diagnose_flights(
         run,
         table,
         duration,
@@ -760,3 +763,32 @@ def diagnose_run(
         progress=progress,
         include_timings=include_timings,
     )
+    # the recording's own disagreements with run.yaml: first among the warnings, and
+    # apart, for the command line to print
+    result["input_warnings"] = drive_warnings(run, qc)
+    result["warnings"] = result["input_warnings"] + result["warnings"]
+    return result
+
+
+def _qc_beside(flights: str | Path) -> pd.DataFrame | None:
+    """The QC table that ``bouncelab extract`` wrote beside a flight table
+    (:func:`bouncelab.flights.qc_path_for`), or None where there is none."""
+    from bouncelab.flights.extract import qc_path_for
+    from bouncelab.tables import read_table
+
+    path = qc_path_for(flights)
+    return read_table(path) if path.is_file() else None
+
+
+def drive_warnings(run, qc: pd.DataFrame | None) -> list[str]:
+    """The run-level warning of a drive channel whose measured frequency (the QC's
+    ``drive_frequency_hz``) disagrees with run.yaml's (:func:`drive_frequency_warning`);
+    [] without a QC table or that column (one written before it existed)."""
+    if qc is None or "drive_frequency_hz" not in qc.columns or not run.drive_frequency_hz:
+        return []
+    from bouncelab.flights.phase import drive_frequency_warning
+
+    warning = drive_frequency_warning(
+        qc["drive_frequency_hz"].to_numpy(dtype=float), run.drive_frequency_hz, str(run.yaml_path)
+    )
+    return [warning] if warning else []

@@ -222,6 +222,16 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
             )
     if rec.channels["continuity"].size and np.ptp(rec.channels["continuity"]) == 0:
         out.append("continuity channel is constant: no contact edges to find")
+    drive = rec.channels.get("drive")
+    if run.kind == "sweep" and drive is not None and run.drive_frequency_hz and len(steps):
+        from bouncelab.flights.extract import drive_frequencies
+        from bouncelab.flights.phase import drive_frequency_warning
+
+        f = run.drive_frequency_hz
+        measured = drive_frequencies(drive, steps, rec.fs, f, rec.time_s)
+        warning = drive_frequency_warning(list(measured.values()), f, "run.yaml")
+        if warning:
+            out.append(warning.removeprefix("run.yaml: "))
     return out
 
 

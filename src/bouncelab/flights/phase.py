@@ -136,14 +136,15 @@ def dominant_frequency(y: np.ndarray, fs: float) -> float:
 
 
 def drive_frequency_warning(
-    measured_hz: np.ndarray, stated_hz: float, path: str = "run.yaml"
+    measured_hz: np.ndarray, stated_hz: float, path: str | None = None
 ) -> str | None:
     """A warning when the drive channel's frequency, measured per step (``measured_hz``,
     NaN where the plate rests or there is no drive channel), disagrees with run.yaml's
     ``drive_frequency_hz`` by more than :data:`DRIVE_FREQUENCY_TOLERANCE` (the median
     over the steps); None otherwise. Why: flight times in radians, the settle cycles and
     every phase use the stated frequency, and a run.yaml copied from another run gives
-    a diagnosis of another experiment, without any error."""
+    a diagnosis of another experiment, without any error. ``path``: the file the
+    warning names first (none: the caller's context names it)."""
     measured = np.asarray(measured_hz, dtype=np.float64)
     measured = measured[np.isfinite(measured)]
     if measured.size == 0 or not stated_hz:
@@ -152,8 +153,8 @@ def drive_frequency_warning(
     off = median / float(stated_hz) - 1.0
     if abs(off) <= DRIVE_FREQUENCY_TOLERANCE:
         return None
-    return (
-        f"{path}: the drive channel runs at {median:.3f} Hz (median over {measured.size} "
+    return (f"{path}: " if path else "") + (
+        f"the drive channel runs at {median:.3f} Hz (median over {measured.size} "
         f"steps), {100 * off:+.1f} % from drive_frequency_hz {float(stated_hz):g}; flight "
         "times in radians and phases use the stated value"
     )

@@ -229,9 +229,9 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
 
         f = run.drive_frequency_hz
         measured = drive_frequencies(drive, steps, rec.fs, f, rec.time_s)
-        warning = drive_frequency_warning(list(measured.values()), f, "run.yaml")
+        warning = drive_frequency_warning(list(measured.values()), f)
         if warning:
-            out.append(warning.removeprefix("run.yaml: "))
+            out.append(warning)
     return out
 
 

@@ -84,12 +84,12 @@ def test_time_column_spacing_mismatch_is_a_warning(make_run):
 def test_a_drive_frequency_unlike_the_drive_channel_is_a_warning(make_run):
     """run.yaml copied from a run at another frequency: the drive channel is a 25 Hz sine
     (:func:`known_signals`), run.yaml states 24 Hz (-4 %). Reference: the channel's own
-    frequency, within 0.03 Hz (1-s steps: the interpolated peak of a Hann window is
-    within 2 % of its 1 Hz bin); the stated 25 Hz gives no warning."""
+    frequency, within 0.01 Hz (1-s steps of 25 cycles: the estimate is within 0.01 %);
+    the stated 25 Hz gives no warning."""
     stated_right = validate_run(make_run("npz", name="right"))
     assert not any("drive channel runs at" in w for w in stated_right.warnings)
     wrong = make_run("npz", name="wrong", yaml_overrides={"drive_frequency_hz": 24.0})
     (warning,) = [w for w in validate_run(wrong).warnings if "drive channel runs at" in w]
     measured = float(warning.split("runs at ")[1].split(" Hz")[0])
-    assert measured == pytest.approx(DRIVE_HZ, abs=0.03)
+    assert measured == pytest.approx(DRIVE_HZ, abs=0.01)
     assert "+4.2 % from drive_frequency_hz 24" in warning

@@ -302,8 +302,10 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         else:
             raise
     drive = rec.channels.get("drive")
-    fits = drive_fits(drive, steps, fs, freq, time_s) if (drive is not None and freq) else {}
-    freqs = drive_frequencies(drive, steps, fs, freq, time_s) if fits else {}
+    fits, freqs = {}, {}
+    if drive is not None and freq:
+        fits = drive_fits(drive, steps, fs, freq, time_s)
+        freqs = drive_frequencies(drive, steps, fs, freq, time_s)
     offset = float(run.extra.get("drive_phase_offset_rad", 0.0) or 0.0)
     if det is None:
         flights = pd.DataFrame({c: [] for c in FLIGHT_COLUMNS})

@@ -784,7 +784,7 @@ def drive_warnings(run, qc: pd.DataFrame | None) -> list[str]:
     """The run-level warning of a drive channel whose measured frequency (the QC's
     ``drive_frequency_hz``) disagrees with run.yaml's (:func:`drive_frequency_warning`);
     [] without a QC table or that column (one written before it existed)."""
-    if qc is None or "drive_frequency_hz" not in qc.columns or not run.drive_frequency_hz:
+    if qc is None or "drive_frequency_hz" not in qc.columns:
         return []
     from bouncelab.flights.phase import drive_frequency_warning
 

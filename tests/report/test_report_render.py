@@ -132,3 +132,34 @@ def test_diagnosis_text_shows_the_verdict_margin_and_the_run_level_warnings(tmp_
     assert any("(3.02 +- 2 noise floors over 2 held-out Gamma steps; limit 3)" in t for t in texts)
     (listed,) = [t for t in texts if t.startswith("Warnings:")]
     assert run_warning in listed and step_warning not in listed
+
+
+def test_diagnosis_text_says_whether_the_seeds_agree(tmp_path):
+    """With ``seed_check`` (``--check-seeds``) the verdict's text says how many seeds were
+    run and whether they agree; without it, nothing is said."""
+    import json
+
+    from bouncelab.report.content import diagnosis_blocks
+
+    run = tmp_path / "runs" / "r"
+    run.mkdir(parents=True)
+    diag = {
+        "baseline": {"model": "ideal", "gap": 3.2},
+        "noise_floor": 0.5,
+        "final_gap": 0.4,
+        "unexplained": False,
+        "steps": [],
+        "warnings": [],
+    }
+
+    def verdict_text(d):
+        (run / "diagnosis.json").write_text(json.dumps(d))
+        blocks = diagnosis_blocks(tmp_path, "r", tmp_path / "captions.yaml")
+        return next(b["text"] for b in blocks if b["type"] == "text" and "Baseline" in b["text"])
+
+    assert "seeds" not in verdict_text(diag)
+    check = {"seeds": [0, 1, 2], "agree": True}
+    assert "Diagnosed with 3 seeds: they agree." in verdict_text({**diag, "seed_check": check})
+    check = {"seeds": [0, 1], "agree": False}
+    text = verdict_text({**diag, "seed_check": check})
+    assert "Diagnosed with 2 seeds: they disagree (see the warnings)." in text

@@ -32,10 +32,11 @@ rule diagnose:
         ),
         baseline=config["diagnosis"]["baseline"],
         seed=config["diagnosis"]["seed"],
+        check_seeds=config["diagnosis"].get("check_seeds", 1),
     shell:
         "bouncelab diagnose {params.run_dir:q} --flights {input.flights:q} "
         "{params.calibration} --baseline {params.baseline} --seed {params.seed} "
-        "--workers {threads} -o {output:q} > {log:q} 2>&1"
+        "--check-seeds {params.check_seeds} --workers {threads} -o {output:q} > {log:q} 2>&1"
 
 
 rule blind_validation:

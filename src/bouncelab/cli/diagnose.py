@@ -48,6 +48,14 @@ def add_parser(sub) -> None:
         help="processes that evaluate the fits' populations (default 2)",
     )
     p.add_argument(
+        "--check-seeds",
+        type=int,
+        default=1,
+        metavar="N",
+        help="diagnose N times in all (seeds SEED, SEED+1, ...) and warn when they conclude "
+        "otherwise; N times the time (default 1: no check)",
+    )
+    p.add_argument(
         "--timings", action="store_true", help="add wall-clock timings (not deterministic)"
     )
     p.set_defaults(handler=run)
@@ -55,6 +63,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from bouncelab.gap.diagnose import diagnose_run
+    from bouncelab.gap.seeds import seed_warning
     from bouncelab.physics import Model
 
     out = Path(args.output)
@@ -65,6 +74,8 @@ def run(args) -> int:
         raise BouncelabError(out, "output must not be written under the run folder it reads")
     if args.workers < 1:
         raise BouncelabError(None, f"--workers must be >= 1, not {args.workers}")
+    if args.check_seeds < 1:
+        raise BouncelabError(None, f"--check-seeds must be >= 1, not {args.check_seeds}")
     if args.fix_calibration and not args.calibration:
         raise BouncelabError(None, "--fix-calibration needs --calibration CAL.json")
     Model.parse(args.baseline)  # a bad model name is bad input: one error line
@@ -77,11 +88,15 @@ def run(args) -> int:
         fix_calibration=args.fix_calibration,
         workers=args.workers,
         include_timings=args.timings,
+        check_seeds=args.check_seeds,
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")
     for warning in result.get("input_warnings", []):
         print(f"warning: {warning}", file=sys.stderr)
+    disagreement = seed_warning(result["seed_check"]) if "seed_check" in result else None
+    if disagreement:
+        print(f"warning: {disagreement}", file=sys.stderr)
     print(summary_line(out, result), file=sys.stderr)
     return 0
 
@@ -97,6 +112,10 @@ def summary_line(out: Path, result: dict) -> str:
             f" (borderline: {margin['rel_gap']:.3g} +- {margin['se']:.2g} noise floors "
             f"against the limit {margin['limit']:g})"
         )
+    check = result.get("seed_check")
+    if check is not None:
+        n = len(check["seeds"])
+        verdict += f"; {n} seeds agree" if check["agree"] else f"; {n} seeds disagree"
     return (
         f"wrote {out}: selected {sel}; gap {result['baseline']['gap']:.4g} -> "
         f"{result['final_gap']:.4g} rad (noise floor {result['noise_floor']:.4g}), {verdict}"

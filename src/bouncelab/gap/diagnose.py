@@ -46,6 +46,7 @@ from bouncelab.gap.fit import (
     too_few_steps,
 )
 from bouncelab.gap.regions import segment_regions
+from bouncelab.gap.seeds import seed_check, seed_warning
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
 from bouncelab.physics import EFFECTS, Model, rigid_plate_restitution
 
@@ -706,6 +707,7 @@ def diagnose_run(
     workers: int | None = None,
     progress: bool | None = None,
     include_timings: bool = False,
+    check_seeds: int = 1,
 ) -> dict:
     """The sim-to-real gap diagnosis of a sweep run (CONTRACTS.md section 6, more keys).
 
@@ -724,6 +726,10 @@ def diagnose_run(
         kernels on numba's threads; see :func:`bouncelab.gap.select.evaluation_pool`).
     progress : a progress bar on stderr (default: when it is a terminal).
     include_timings : add wall-clock ``timings`` (the only non-deterministic key).
+    check_seeds : diagnose the run this many times in all, with seeds ``seed``,
+        ``seed + 1``, ...; the result is the first diagnosis, with ``seed_check``
+        (:func:`bouncelab.gap.seeds.seed_check`) and a warning when the others concluded
+        otherwise. Each seed costs a whole diagnosis; 1 (the default) runs none.
 
     Returns
     -------
@@ -738,6 +744,8 @@ def diagnose_run(
         calibration = read_calibration(calibration)
     if fix_calibration and calibration is None:
         raise BouncelabError(None, "--fix-calibration needs a calibration")
+    if check_seeds < 1:
+        raise BouncelabError(None, f"check_seeds must be >= 1, not {check_seeds}")
     qc = None
     if flights is None:
         from bouncelab.flights import extract_run
@@ -749,20 +757,30 @@ def diagnose_run(
         duration = _recording_duration(run)
         if not isinstance(flights, pd.DataFrame):
             qc = _qc_beside(flights)
-    result = diagnose_flights(
-        run,
-        table,
-        duration,
-        calibration=calibration,
-        fix_calibration=fix_calibration,
-        baseline=baseline,
-        seed=seed,
-        fit_settings=fit_settings,
-        select_settings=select_settings,
-        workers=workers,
-        progress=progress,
-        include_timings=include_timings,
-    )
+
+    def diagnosis(with_seed: int) -> dict:
+        return diagnose_flights(
+            run,
+            table,
+            duration,
+            calibration=calibration,
+            fix_calibration=fix_calibration,
+            baseline=baseline,
+            seed=with_seed,
+            fit_settings=fit_settings,
+            select_settings=select_settings,
+            workers=workers,
+            progress=progress,
+            include_timings=include_timings,
+        )
+
+    result = diagnosis(seed)
+    if check_seeds > 1:
+        others = [diagnosis(seed + j) for j in range(1, check_seeds)]
+        result["seed_check"] = seed_check([result, *others])
+        disagreement = seed_warning(result["seed_check"])
+        if disagreement:
+            result["warnings"].append(disagreement)
     # the recording's own disagreements with run.yaml: first among the warnings, and
     # apart, for the command line to print
     result["input_warnings"] = drive_warnings(run, qc)

@@ -210,6 +210,17 @@ def calibration_rows(results: Path, drops: list[str]) -> list[list[str]]:
     return rows
 
 
+def _seed_check_text(check: dict | None) -> str:
+    """A sentence on the diagnosis's seed check (``--check-seeds``), or "" without one;
+    a disagreement is named in the run's warnings."""
+    if not check:
+        return ""
+    n = len(check["seeds"])
+    if check["agree"]:
+        return f" Diagnosed with {n} seeds: they agree."
+    return f" Diagnosed with {n} seeds: they disagree (see the warnings)."
+
+
 def _params_text(params: dict, ci: dict | None = None) -> str:
     """``mu = 0.29 [0.27, 0.31], e = 0.5`` from a parameter dict and optional intervals."""
     parts = []
@@ -270,6 +281,7 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
                 f"{', '.join(diag.get('selected') or []) or 'none'}; final gap "
                 f"{fmt(diag.get('final_gap'))} rad{margin_text}. {verdict}"
                 + (f" Why: {'; '.join(map(str, reasons))}." if reasons else "")
+                + _seed_check_text(diag.get("seed_check"))
             ),
         }
     )

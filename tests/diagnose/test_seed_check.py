@@ -9,7 +9,7 @@ import pytest
 from diag_synth import pseudo_flights, write_run
 
 from bouncelab.cli import main
-from bouncelab.gap.seeds import seed_check, seed_warning
+from bouncelab.gap.seeds import majority_index, seed_check, seed_warning
 from bouncelab.physics import Model
 from bouncelab.tables import write_table
 
@@ -35,6 +35,7 @@ def test_seeds_that_agree():
         ]
     )
     assert check["seeds"] == [0, 1]
+    assert check["reported_seed"] == 0 and check["reported_share"] == [2, 2]
     assert check["sets_agree"] and check["verdicts_agree"] and check["agree"]
     assert check["params_range"] == {"e": [0.48, 0.50], "mu": [0.29, 0.31]}
     assert seed_warning(check) is None
@@ -55,6 +56,8 @@ def test_seeds_that_disagree_are_named():
     warning = seed_warning(check)
     assert "seed 0: restitution + harmonic + friction, explained" in warning
     assert "seed 1: restitution + feedback, unexplained" in warning
+    assert check["reported_share"] == [2, 3]
+    assert "seed 0's is reported, the conclusion of 2 of 3 seeds" in warning
     same_set = seed_check([_result(0, ["friction"]), _result(1, ["friction"], True)])
     assert same_set["sets_agree"] and not same_set["agree"]
     assert "seed 1: friction, unexplained" in seed_warning(same_set)
@@ -62,8 +65,24 @@ def test_seeds_that_disagree_are_named():
 
 def test_one_diagnosis_agrees_with_itself_and_none_is_an_error():
     assert seed_check([_result(3, [])])["agree"]
+    assert majority_index([_result(3, [])]) == 0
     with pytest.raises(ValueError):
         seed_check([])
+    with pytest.raises(ValueError):
+        majority_index([])
+
+
+def test_the_reported_diagnosis_is_the_conclusion_most_seeds_reached():
+    """The first diagnosis of the most common conclusion (effects in any order, and the
+    verdict); between conclusions shared equally, the one reached first; the first
+    diagnosis when all differ."""
+    a = ["restitution", "friction"]
+    b = ["harmonic", "friction"]
+    assert majority_index([_result(0, b), _result(1, a), _result(2, a[::-1])]) == 1
+    assert majority_index([_result(0, a), _result(1, b), _result(2, ["feedback"])]) == 0
+    assert majority_index([_result(0, a), _result(1, b), _result(2, b), _result(3, a)]) == 0
+    # the same effects with another verdict are another conclusion
+    assert majority_index([_result(0, a, True), _result(1, a), _result(2, a)]) == 1
 
 
 @pytest.fixture(scope="module")
@@ -74,12 +93,12 @@ def null_run(tmp_path_factory):
     return run_dir, path
 
 
-def test_cli_reports_the_first_seed_and_warns_when_others_differ(
+def test_cli_reports_the_majority_and_warns_when_seeds_differ(
     null_run, tmp_path, monkeypatch, capsys
 ):
-    """The command's result is the first seed's diagnosis with ``seed_check`` beside it;
-    when another seed concludes otherwise, the warning is in ``warnings`` and on stderr,
-    and the summary line says the seeds disagree. The diagnoses are stand-ins here (a
+    """The command's result is the diagnosis of the conclusion most seeds reached, with
+    ``seed_check`` beside it; when the seeds disagree, the warning is in ``warnings`` and
+    on stderr, and the summary line says so. The diagnoses are stand-ins here (a
     real lottery needs minutes): what is tested is the wiring."""
     import bouncelab.gap.diagnose as diag
 
@@ -98,12 +117,13 @@ def test_cli_reports_the_first_seed_and_warns_when_others_differ(
     assert main([*args, "--seed", "5", "--check-seeds", "3"]) == 0
     assert calls == [5, 6, 7]
     r = json.loads(out.read_text())
-    assert r["design"]["seed"] == 5 and r["selected"] == ["friction"]
+    assert r["design"]["seed"] == 6 and r["selected"] == ["harmonic"]
+    assert r["seed_check"]["reported_seed"] == 6
     assert r["seed_check"]["seeds"] == [5, 6, 7] and not r["seed_check"]["agree"]
     (warning,) = r["warnings"]
     err = capsys.readouterr().err.splitlines()
     assert f"warning: {warning}" in err
-    assert err[-1].endswith("3 seeds disagree")
+    assert err[-1].endswith("3 seeds disagree, seed 6's reported (2 of 3)")
 
 
 def test_check_seeds_below_one_is_one_error_line(null_run, tmp_path, capsys):
@@ -117,7 +137,8 @@ def test_check_seeds_below_one_is_one_error_line(null_run, tmp_path, capsys):
 
 def test_real_diagnoses_with_two_seeds(null_run):
     """Two real diagnoses (the small test budget) of a null run: the reported one is the
-    plain diagnosis of the first seed, the check holds both seeds' conclusions."""
+    plain diagnosis of the first seed (two seeds agree, or tie and the first is
+    reported), the check holds both seeds' conclusions."""
     from bouncelab.gap.diagnose import diagnose_run
     from bouncelab.gap.fit import FitSettings
 
@@ -136,7 +157,8 @@ def test_real_diagnoses_with_two_seeds(null_run):
 def test_replay_of_five_seed_records_counts_flags():
     """The benchmark that replays ``bench_blind_seeds.py``'s records as three-seed checks:
     a case right on every seed is never flagged; on a case wrong at seed 4 alone the
-    checks that include seed 4 (reported 2, 3 and 4) are flagged, one of them wrong."""
+    checks that include seed 4 (first seeds 2, 3 and 4) are flagged, and each reports
+    the other two's right conclusion, where one seed alone was wrong once."""
     import sys
     from pathlib import Path
 
@@ -154,9 +176,10 @@ def test_replay_of_five_seed_records_counts_flags():
         }
     }
     r = replay(record)
-    assert (r["wrong_flagged"], r["wrong_quiet"]) == (1, 0)
-    assert (r["right_flagged"], r["right_quiet"]) == (2, 7)
-    assert {(f["case"], f["seed"]) for f in r["flagged"]} == {
+    assert (r["checks"], r["first_right"], r["reported_right"]) == (10, 9, 10)
+    assert (r["wrong_flagged"], r["wrong_quiet"]) == (0, 0)
+    assert (r["right_flagged"], r["right_quiet"]) == (3, 7)
+    assert {(f["case"], f["first_seed"]) for f in r["flagged"]} == {
         ("lottery", 2),
         ("lottery", 3),
         ("lottery", 4),

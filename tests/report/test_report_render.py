@@ -160,6 +160,7 @@ def test_diagnosis_text_says_whether_the_seeds_agree(tmp_path):
     assert "seeds" not in verdict_text(diag)
     check = {"seeds": [0, 1, 2], "agree": True}
     assert "Diagnosed with 3 seeds: they agree." in verdict_text({**diag, "seed_check": check})
-    check = {"seeds": [0, 1], "agree": False}
+    check = {"seeds": [0, 1, 2], "agree": False, "reported_seed": 1, "reported_share": [2, 3]}
     text = verdict_text({**diag, "seed_check": check})
-    assert "Diagnosed with 2 seeds: they disagree (see the warnings)." in text
+    expected = "they disagree; shown is seed 1's, the conclusion of 2 (see the warnings)."
+    assert "Diagnosed with 3 seeds: " + expected in text

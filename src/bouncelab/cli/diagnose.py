@@ -52,8 +52,8 @@ def add_parser(sub) -> None:
         type=int,
         default=1,
         metavar="N",
-        help="diagnose N times in all (seeds SEED, SEED+1, ...) and warn when they conclude "
-        "otherwise; N times the time (default 1: no check)",
+        help="diagnose with N seeds (SEED, SEED+1, ...), report the conclusion most of them "
+        "reached and warn when they disagree; N times the time (default 1: no check)",
     )
     p.add_argument(
         "--timings", action="store_true", help="add wall-clock timings (not deterministic)"
@@ -115,7 +115,12 @@ def summary_line(out: Path, result: dict) -> str:
     check = result.get("seed_check")
     if check is not None:
         n = len(check["seeds"])
-        verdict += f"; {n} seeds agree" if check["agree"] else f"; {n} seeds disagree"
+        k = check["reported_share"][0]
+        verdict += (
+            f"; {n} seeds agree"
+            if check["agree"]
+            else f"; {n} seeds disagree, seed {check['reported_seed']}'s reported ({k} of {n})"
+        )
     return (
         f"wrote {out}: selected {sel}; gap {result['baseline']['gap']:.4g} -> "
         f"{result['final_gap']:.4g} rad (noise floor {result['noise_floor']:.4g}), {verdict}"

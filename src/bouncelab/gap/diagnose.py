@@ -46,7 +46,7 @@ from bouncelab.gap.fit import (
     too_few_steps,
 )
 from bouncelab.gap.regions import segment_regions
-from bouncelab.gap.seeds import seed_check, seed_warning
+from bouncelab.gap.seeds import majority_index, seed_check, seed_warning
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
 from bouncelab.physics import EFFECTS, Model, rigid_plate_restitution
 
@@ -727,9 +727,10 @@ def diagnose_run(
     progress : a progress bar on stderr (default: when it is a terminal).
     include_timings : add wall-clock ``timings`` (the only non-deterministic key).
     check_seeds : diagnose the run this many times in all, with seeds ``seed``,
-        ``seed + 1``, ...; the result is the first diagnosis, with ``seed_check``
-        (:func:`bouncelab.gap.seeds.seed_check`) and a warning when the others concluded
-        otherwise. Each seed costs a whole diagnosis; 1 (the default) runs none.
+        ``seed + 1``, ...; the result is the diagnosis whose conclusion most seeds reached
+        (:func:`bouncelab.gap.seeds.majority_index`; the first when all differ), with
+        ``seed_check`` (:func:`bouncelab.gap.seeds.seed_check`) and a warning when the
+        seeds disagree. Each seed costs a whole diagnosis; 1 (the default) checks nothing.
 
     Returns
     -------
@@ -774,10 +775,11 @@ def diagnose_run(
             include_timings=include_timings,
         )
 
-    result = diagnosis(seed)
+    results = [diagnosis(seed + j) for j in range(check_seeds)]
+    reported = majority_index(results)
+    result = results[reported]
     if check_seeds > 1:
-        others = [diagnosis(seed + j) for j in range(1, check_seeds)]
-        result["seed_check"] = seed_check([result, *others])
+        result["seed_check"] = seed_check(results, reported)
         disagreement = seed_warning(result["seed_check"])
         if disagreement:
             result["warnings"].append(disagreement)

@@ -212,13 +212,17 @@ def calibration_rows(results: Path, drops: list[str]) -> list[list[str]]:
 
 def _seed_check_text(check: dict | None) -> str:
     """A sentence on the diagnosis's seed check (``--check-seeds``), or "" without one;
-    a disagreement is named in the run's warnings."""
+    what each seed concluded is in the run's warnings."""
     if not check:
         return ""
     n = len(check["seeds"])
     if check["agree"]:
         return f" Diagnosed with {n} seeds: they agree."
-    return f" Diagnosed with {n} seeds: they disagree (see the warnings)."
+    k = check["reported_share"][0]
+    return (
+        f" Diagnosed with {n} seeds: they disagree; shown is seed "
+        f"{check['reported_seed']}'s, the conclusion of {k} (see the warnings)."
+    )
 
 
 def _params_text(params: dict, ci: dict | None = None) -> str:

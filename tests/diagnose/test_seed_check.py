@@ -184,3 +184,20 @@ def test_replay_of_five_seed_records_counts_flags():
         ("lottery", 3),
         ("lottery", 4),
     }
+
+
+def test_with_a_progress_bar_each_seed_is_announced(null_run, monkeypatch, capsys):
+    """Several whole diagnoses are a long wait: with progress shown, a line says which
+    seed the fits' bars belong to."""
+    import bouncelab.gap.diagnose as diag
+
+    def fake(run, table, duration, *, seed, **kw):
+        return {**_result(seed, []), "warnings": []}
+
+    monkeypatch.setattr(diag, "diagnose_flights", fake)
+    run_dir, flights = null_run
+    diag.diagnose_run(run_dir, flights=flights, check_seeds=2, seed=4, progress=True)
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["diagnosis with seed 4 (1 of 2)", "diagnosis with seed 5 (2 of 2)"]
+    diag.diagnose_run(run_dir, flights=flights, check_seeds=2, progress=False)
+    assert capsys.readouterr().err == ""

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -775,7 +776,12 @@ def diagnose_run(
             include_timings=include_timings,
         )
 
-    results = [diagnosis(seed + j) for j in range(check_seeds)]
+    results = []
+    for j in range(check_seeds):
+        if check_seeds > 1 and (progress if progress is not None else sys.stderr.isatty()):
+            # a long wait: say which of the seeds' diagnoses the fits' bars belong to
+            print(f"diagnosis with seed {seed + j} ({j + 1} of {check_seeds})", file=sys.stderr)
+        results.append(diagnosis(seed + j))
     reported = majority_index(results)
     result = results[reported]
     if check_seeds > 1:

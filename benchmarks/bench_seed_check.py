@@ -8,7 +8,9 @@ with diagnosis seeds 0-4 on the same recordings. Every seed ``s`` in turn starts
 of seeds ``s``, ``s+1`` and ``s+2`` (modulo 5) with the library's own
 :func:`bouncelab.gap.seeds.majority_index` and :func:`bouncelab.gap.seeds.seed_check`.
 No diagnosis is run: the records hold each seed's selected set and verdict, which is all
-the check compares.
+the check compares, but no final gap: where the three seeds all differ (3 of the 35
+combination checks, none of the single effects), the replay reports the first seed,
+where ``diagnose`` reports the one of least final held-out gap.
 
 Prints and writes ``benchmarks/results/seed_check_replay.json``.
 
@@ -29,7 +31,8 @@ N_CHECKED = 3
 
 def as_diagnosis(seed: int, row: dict) -> dict:
     """The keys of a diagnosis that :func:`seed_check` reads, from one seed's record (the
-    records keep no final gap or parameters: they are not compared)."""
+    records keep no final gap or parameters: the gaps are set equal, so conclusions
+    shared equally go to the first seed)."""
     return {
         "design": {"seed": seed},
         "selected": row["selected"],

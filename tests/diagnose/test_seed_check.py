@@ -74,13 +74,22 @@ def test_one_diagnosis_agrees_with_itself_and_none_is_an_error():
 
 def test_the_reported_diagnosis_is_the_conclusion_most_seeds_reached():
     """The first diagnosis of the most common conclusion (effects in any order, and the
-    verdict); between conclusions shared equally, the one reached first; the first
-    diagnosis when all differ."""
+    verdict), whatever the gaps; between conclusions shared equally, the one with the
+    least final held-out gap, then the one reached first."""
     a = ["restitution", "friction"]
     b = ["harmonic", "friction"]
-    assert majority_index([_result(0, b), _result(1, a), _result(2, a[::-1])]) == 1
+    # a majority wins over a smaller gap
+    assert majority_index([_result(0, b, rel_gap=0.1), _result(1, a), _result(2, a[::-1])]) == 1
+    # all differ: the least gap (the frh seeds 1-3 of session 38), then the first
+    frh = [_result(1, ["feedback", "restitution", "friction"], True, 3.15),
+           _result(2, ["restitution", "harmonic", "friction"], False, 1.21),
+           _result(3, ["feedback", "restitution"], True, 3.4)]  # fmt: skip
+    assert majority_index(frh) == 1
     assert majority_index([_result(0, a), _result(1, b), _result(2, ["feedback"])]) == 0
-    assert majority_index([_result(0, a), _result(1, b), _result(2, b), _result(3, a)]) == 0
+    # two against two: the conclusion whose diagnoses reach the least gap, its first seed
+    two_two = [_result(0, a, rel_gap=0.9), _result(1, b, rel_gap=1.0),
+               _result(2, b, rel_gap=0.5), _result(3, a, rel_gap=0.8)]  # fmt: skip
+    assert majority_index(two_two) == 1
     # the same effects with another verdict are another conclusion
     assert majority_index([_result(0, a, True), _result(1, a), _result(2, a)]) == 1
 

@@ -32,7 +32,7 @@ rule diagnose:
         ),
         baseline=config["diagnosis"]["baseline"],
         seed=config["diagnosis"]["seed"],
-        check_seeds=config["diagnosis"].get("check_seeds", 1),
+        check_seeds=config["diagnosis"]["check_seeds"],
     shell:
         "bouncelab diagnose {params.run_dir:q} --flights {input.flights:q} "
         "{params.calibration} --baseline {params.baseline} --seed {params.seed} "

@@ -9,8 +9,10 @@ then scored against the generator's truth: the effects selected against the true
 the relative parameter errors (psi: of 2 pi; the discrete k too, so a wrong k counts
 as a miss, as in the blind validation), the verdict, and the time.
 
-Measures, prints and writes ``benchmarks/results/independent.json``.
-Run: ``python benchmarks/bench_independent.py [--only NAME ...] [--workers 2]``.
+Measures, prints and writes ``benchmarks/results/independent.json`` (with ``--seed N``,
+the diagnosis's own seed, ``independent_seedN.json``: a check that an answer is not one
+seed's luck).
+Run: ``python benchmarks/bench_independent.py [--only NAME ...] [--workers 2] [--seed 0]``.
 """
 
 from __future__ import annotations
@@ -198,16 +200,18 @@ def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--only", nargs="*", default=None)
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--seed", type=int, default=0, help="the diagnosis's seed (default 0)")
     args = p.parse_args()
     names = args.only or list(CASES)
-    record = json.loads(OUT.read_text()) if OUT.exists() and args.only else {"cases": {}}
+    out = OUT if args.seed == 0 else OUT.with_name(f"independent_seed{args.seed}.json")
+    record = json.loads(out.read_text()) if out.exists() and args.only else {"cases": {}}
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
             run_dir = Path(tmp) / name
             t0 = time.perf_counter()
             make_case(run_dir, **CASES[name])
             t1 = time.perf_counter()
-            diag = diagnose_run(run_dir, workers=args.workers, progress=False)
+            diag = diagnose_run(run_dir, workers=args.workers, seed=args.seed, progress=False)
             t2 = time.perf_counter()
             truth = json.loads(run_dir.with_name(name + ".truth.json").read_text())
             s = score(truth, diag) | {"generate_s": t1 - t0, "diagnose_s": t2 - t1}
@@ -235,7 +239,8 @@ def main() -> None:
         "over_goal_s": sorted(n for n, c in record["cases"].items() if c["diagnose_s"] > GOAL_S),
     }
     record["machine"] = {"cpus": platform.machine(), "python": platform.python_version()}
-    OUT.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
+    record["diagnosis_seed"] = args.seed
+    out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
     print(json.dumps(record["summary"]))
 
 

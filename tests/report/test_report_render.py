@@ -164,3 +164,9 @@ def test_diagnosis_text_says_whether_the_seeds_agree(tmp_path):
     text = verdict_text({**diag, "seed_check": check})
     expected = "they disagree; shown is seed 1's, the conclusion of 2 (see the warnings)."
     assert "Diagnosed with 3 seeds: " + expected in text
+    # a retry (a first seed that left the gap unexplained)
+    assert "Seed" not in verdict_text(diag)
+    text = verdict_text({**diag, "retry": {"seeds": [0, 1], "reported_seed": 1}})
+    assert "Seed 0 left the gap unexplained; shown is seed 1's diagnosis" in text
+    text = verdict_text({**diag, "retry": {"seeds": [0, 1], "reported_seed": 0}})
+    assert "Seed 0 left the gap unexplained, and so did 1 more seed(s)." in text

@@ -33,10 +33,12 @@ rule diagnose:
         baseline=config["diagnosis"]["baseline"],
         seed=config["diagnosis"]["seed"],
         check_seeds=config["diagnosis"]["check_seeds"],
+        retries=config["diagnosis"]["retries"],
     shell:
         "bouncelab diagnose {params.run_dir:q} --flights {input.flights:q} "
         "{params.calibration} --baseline {params.baseline} --seed {params.seed} "
-        "--check-seeds {params.check_seeds} --workers {threads} -o {output:q} > {log:q} 2>&1"
+        "--check-seeds {params.check_seeds} --retries {params.retries} --workers {threads} "
+        "-o {output:q} > {log:q} 2>&1"
 
 
 rule blind_validation:

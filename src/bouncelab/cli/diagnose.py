@@ -56,6 +56,15 @@ def add_parser(sub) -> None:
         "reached and warn when they disagree; N times the time (default 1: no check)",
     )
     p.add_argument(
+        "--retries",
+        type=int,
+        default=None,
+        metavar="N",
+        help="when the diagnosis leaves the gap unexplained, diagnose again with the next "
+        "seed, up to N times, and report the first that explains the run (default 1; 0: "
+        "never; not with --check-seeds)",
+    )
+    p.add_argument(
         "--timings", action="store_true", help="add wall-clock timings (not deterministic)"
     )
     p.set_defaults(handler=run)
@@ -63,7 +72,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from bouncelab.gap.diagnose import diagnose_run
-    from bouncelab.gap.seeds import seed_warning
+    from bouncelab.gap.seeds import RETRIES, retry_warning, seed_warning
     from bouncelab.physics import Model
 
     out = Path(args.output)
@@ -76,6 +85,8 @@ def run(args) -> int:
         raise BouncelabError(None, f"--workers must be >= 1, not {args.workers}")
     if args.check_seeds < 1:
         raise BouncelabError(None, f"--check-seeds must be >= 1, not {args.check_seeds}")
+    if args.retries is not None and args.retries < 0:
+        raise BouncelabError(None, f"--retries must be >= 0, not {args.retries}")
     if args.fix_calibration and not args.calibration:
         raise BouncelabError(None, "--fix-calibration needs --calibration CAL.json")
     Model.parse(args.baseline)  # a bad model name is bad input: one error line
@@ -89,6 +100,7 @@ def run(args) -> int:
         workers=args.workers,
         include_timings=args.timings,
         check_seeds=args.check_seeds,
+        retries=RETRIES if args.retries is None else args.retries,
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")
@@ -97,6 +109,9 @@ def run(args) -> int:
     disagreement = seed_warning(result["seed_check"]) if "seed_check" in result else None
     if disagreement:
         print(f"warning: {disagreement}", file=sys.stderr)
+    retried = retry_warning(result["retry"]) if "retry" in result else None
+    if retried:
+        print(f"warning: {retried}", file=sys.stderr)
     print(summary_line(out, result), file=sys.stderr)
     return 0
 
@@ -120,6 +135,14 @@ def summary_line(out: Path, result: dict) -> str:
             f"; {n} seeds agree"
             if check["agree"]
             else f"; {n} seeds disagree, seed {check['reported_seed']}'s reported ({k} of {n})"
+        )
+    retry = result.get("retry")
+    if retry is not None:
+        first = retry["seeds"][0]
+        verdict += (
+            f"; retried with {len(retry['seeds']) - 1} more seed(s), none explains it"
+            if retry["reported_seed"] == first
+            else f" by seed {retry['reported_seed']} (seed {first} left it unexplained)"
         )
     return (
         f"wrote {out}: selected {sel}; gap {result['baseline']['gap']:.4g} -> "

@@ -225,6 +225,21 @@ def _seed_check_text(check: dict | None) -> str:
     )
 
 
+def _retry_text(retry: dict | None) -> str:
+    """A sentence on the diagnosis's retries (a first seed that left the gap unexplained),
+    or "" without any."""
+    if not retry:
+        return ""
+    first, shown = retry["seeds"][0], retry["reported_seed"]
+    if shown == first:
+        n = len(retry["seeds"]) - 1
+        return f" Seed {first} left the gap unexplained, and so did {n} more seed(s)."
+    return (
+        f" Seed {first} left the gap unexplained; shown is seed {shown}'s diagnosis, which "
+        "explains it (see the warnings)."
+    )
+
+
 def _params_text(params: dict, ci: dict | None = None) -> str:
     """``mu = 0.29 [0.27, 0.31], e = 0.5`` from a parameter dict and optional intervals."""
     parts = []
@@ -286,6 +301,7 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
                 f"{fmt(diag.get('final_gap'))} rad{margin_text}. {verdict}"
                 + (f" Why: {'; '.join(map(str, reasons))}." if reasons else "")
                 + _seed_check_text(diag.get("seed_check"))
+                + _retry_text(diag.get("retry"))
             ),
         }
     )

@@ -8,12 +8,9 @@ from __future__ import annotations
 import json
 
 import pytest
-from diag_synth import pseudo_flights, write_run
 
 from bouncelab.cli import main
 from bouncelab.gap.seeds import RETRIES, retry_index, retry_warning, seed_check
-from bouncelab.physics import Model
-from bouncelab.tables import write_table
 
 
 def _result(seed, selected, unexplained=False, rel_gap=0.8, n_heldout=10):
@@ -53,14 +50,6 @@ def test_the_warning_names_both_conclusions_only_when_a_retry_is_reported():
     assert "seed 0: restitution + feedback, unexplained (gap 2.10 noise floors)" in warning
     assert "seed 1: restitution + feedback + friction, explained (0.90), reported" in warning
     assert retry_warning(seed_check([u0, _result(1, [], True, 3.0)], 0)) is None
-
-
-@pytest.fixture(scope="module")
-def null_run(tmp_path_factory):
-    root = tmp_path_factory.mktemp("retry")
-    run_dir = write_run(root)
-    path = write_table(pseudo_flights(run_dir, Model.parse("ideal"), seed=3), root / "f.parquet")
-    return run_dir, path
 
 
 @pytest.fixture

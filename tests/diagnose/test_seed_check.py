@@ -6,12 +6,9 @@ from __future__ import annotations
 import json
 
 import pytest
-from diag_synth import pseudo_flights, write_run
 
 from bouncelab.cli import main
 from bouncelab.gap.seeds import majority_index, seed_check, seed_warning
-from bouncelab.physics import Model
-from bouncelab.tables import write_table
 
 
 def _result(seed, selected, unexplained=False, rel_gap=0.8, params=None):
@@ -92,14 +89,6 @@ def test_the_reported_diagnosis_is_the_conclusion_most_seeds_reached():
     assert majority_index(two_two) == 1
     # the same effects with another verdict are another conclusion
     assert majority_index([_result(0, a, True), _result(1, a), _result(2, a)]) == 1
-
-
-@pytest.fixture(scope="module")
-def null_run(tmp_path_factory):
-    root = tmp_path_factory.mktemp("seeds")
-    run_dir = write_run(root)
-    path = write_table(pseudo_flights(run_dir, Model.parse("ideal"), seed=3), root / "f.parquet")
-    return run_dir, path
 
 
 def test_cli_reports_the_majority_and_warns_when_seeds_differ(

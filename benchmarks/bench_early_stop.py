@@ -1,0 +1,217 @@
+"""What an exact early stop of losing trials would save the diagnosis (a diagnostic).
+
+The idea measured: in the fits' differential evolution (``updating="deferred"``), a trial
+replaces its parent only if its objective is not larger than the parent's. The objective
+is a weighted mean of non-negative per-step gaps, and the protocol's steps are simulated
+in recording order, so the gaps of the steps already simulated give a lower bound of the
+objective; once that bound exceeds the parent's objective the trial has lost, and its
+remaining steps could be skipped with no change to the search (only the cloud of
+evaluations that intervals are drawn from would lose the stopped trials).
+
+Before building a resumable simulation for that, this script measures the gain. It runs
+one diagnosis in one process (``workers=1``) with two hooks:
+
+- every simulation records its flights per protocol entry and its per-step gaps;
+- the global search runs scipy's solver itself, so that each trial's parent objective is
+  known (the same search: the diagnosis's total flights come out as without the hook).
+
+Then, for every trial of a later generation, it finds the first check (after every
+protocol entry, or every 5, 10, 20 % of them) where the gaps of the steps complete by
+then (a step's entry and the next one simulated) exceed the parent's objective, and
+counts the flights after it as saved. Flights per entry are the rows the fits read,
+scaled to the evaluation's kernel count.
+
+Measures, prints and writes ``benchmarks/results/early_stop_<case>.json``.
+Run: ``python benchmarks/bench_early_stop.py [--case seed_like_long_steps | --run DIR]
+[--seed 0]`` (cases of ``bench_independent.py``, made in a temporary folder); about 3
+minutes a run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+# scipy's own solver class (what ``differential_evolution`` runs), to read each trial's
+# parent objective; private, but this is a measurement, not the product
+from scipy.optimize._differentialevolution import DifferentialEvolutionSolver
+
+import bouncelab.gap.fit as fit
+from bouncelab.gap.diagnose import diagnose_run
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_independent import CASES  # noqa: E402
+from independent_rig import make_case  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+CHECK_SHARES = (0.0, 0.05, 0.1, 0.2)  # 0: a check after every protocol entry
+
+
+class Recorder:
+    """Hooks on :mod:`bouncelab.gap.fit` that record every simulation and DE generation."""
+
+    def __init__(self):
+        self.sims = []  # (problem key, flights per protocol entry, kernel flights, gaps, draws)
+        self.problems = {}  # problem key -> what the partial objective needs
+        self.generations = []  # (first sim index, end sim index, parent objectives, values)
+
+    def one_draw_gaps(self, problem, model, buffer, shift):
+        """:func:`bouncelab.gap.fit._one_draw_gaps`, recording flights and gaps."""
+        before = buffer.flights
+        proto = problem.protocol
+        sim = fit.protocol_flight_times(
+            model,
+            proto["gamma"].to_numpy(),
+            proto["cycles"].to_numpy(),
+            settle_cycles=int(problem.run.settle_cycles),
+            gamma_factors=1.0
+            + fit.member_offsets(max(1, problem.n_members))
+            + shift * fit.MEMBER_SPREAD,
+            chatter_eps=fit.resolution_T(problem.run, fit.CHATTER_SAMPLES),
+            buffer=buffer,
+            min_contact=problem.min_contact,
+        )
+        gaps = fit._ensemble_min_gaps(problem, sim)
+        key = id(problem)
+        if key not in self.problems:
+            entry = {s: j for j, s in enumerate(proto["step"].to_numpy())}  # last entry
+            self.problems[key] = {
+                "n_entries": len(proto),
+                "entry": np.array([entry[s] for s in problem.steps["step"].to_numpy()]),
+                "fit": problem.fit.copy(),
+                "weights": problem.weights.copy(),
+                "cap": fit.GAP_CAP * problem.floor,
+            }
+        per_entry = np.bincount(sim["step"], minlength=len(proto)).astype(float)
+        self.sims.append((key, per_entry, buffer.flights - before, gaps, problem.n_draws))
+        return gaps
+
+    def global_search(self, ev, lift, sub, z0, popsize, maxiter, settings, seed):
+        """:func:`bouncelab.gap.fit._global_search` with scipy's solver held, so that the
+        population map sees the parents' objectives."""
+        held = {}
+
+        def objective(z):
+            return ev(lift(z))
+
+        def population_map(_func, zs):
+            energies = held["solver"].population_energies
+            parents = None if np.all(np.isinf(energies)) else energies.copy()
+            start = len(self.sims)
+            values = ev.many([lift(z) for z in zs])
+            self.generations.append((start, len(self.sims), parents, np.array(values)))
+            return values
+
+        with DifferentialEvolutionSolver(
+            objective,
+            [(p.lower, p.upper) for p in sub],
+            rng=seed,  # as differential_evolution(seed=...) passes it
+            popsize=fit.population_per_param(popsize, settings.max_population, len(sub)),
+            maxiter=maxiter,
+            tol=settings.tol,
+            polish=False,
+            init="latinhypercube",
+            x0=z0,
+            integrality=[p.choices is not None for p in sub],
+            updating="deferred",
+            workers=population_map,
+        ) as solver:
+            held["solver"] = solver
+            return solver.solve().x
+
+
+def stop_point(problem: dict, gaps, per_entry, flights, bound, every, margin=1):
+    """``(flights saved, share of the protocol run)`` when a trial of per-step ``gaps``
+    stops at the first check (every ``every`` entries) where the steps complete by then
+    exceed ``bound``; a step is complete once ``margin`` more entries have run."""
+    fit_steps = problem["fit"]
+    w = problem["weights"]
+    part = np.where(fit_steps, w * np.minimum(gaps, problem["cap"]), 0.0) / w[fit_steps].sum()
+    cost = np.cumsum(per_entry / max(per_entry.sum(), 1.0) * flights)
+    n = problem["n_entries"]
+    for c in [*range(every, n, every), n]:
+        if part[problem["entry"] + margin < c].sum() > bound:
+            return flights - cost[c - 1], c / n
+    return 0.0, 1.0
+
+
+def savings(rec: Recorder, share: float, margin: int = 1) -> dict:
+    """Flights an early stop saves over the recorded diagnosis, checking every ``share``
+    of the protocol's entries (0: after each)."""
+    total = sum(s[2] for s in rec.sims)
+    de = saved = 0.0
+    trials = stopped = 0
+    where = []
+    for start, end, parents, values in rec.generations:
+        for key, per_entry, flights, gaps, draws in rec.sims[start:end]:
+            de += flights
+            if parents is None or draws != 1:  # the first population has no parents
+                continue
+            problem = rec.problems[key]
+            w = problem["weights"][problem["fit"]]
+            value = np.sum(w * np.minimum(gaps, problem["cap"])[problem["fit"]]) / np.sum(w)
+            mine = np.flatnonzero(values == value)  # the population slots it was tried in
+            if len(mine) == 0:
+                continue
+            trials += 1
+            every = max(1, round(share * problem["n_entries"]))
+            s, at = stop_point(
+                problem, gaps, per_entry, flights, float(parents[mine].max()), every, margin
+            )
+            if s > 0:
+                stopped += 1
+                where.append(at)
+            saved += s
+    return {
+        "check_every_share": share,
+        "step_margin_entries": margin,
+        "trials": trials,
+        "trials_stopped": stopped,
+        "median_stop_share": float(np.median(where)) if where else None,
+        "de_share_of_flights": float(de / total),
+        "saved_share_of_flights": float(saved / total),
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--case", default="seed_like_long_steps", choices=sorted(CASES))
+    p.add_argument("--run", default=None, help="a run folder to diagnose instead of a case")
+    p.add_argument("--seed", type=int, default=0, help="the diagnosis's seed")
+    args = p.parse_args()
+    rec = Recorder()
+    fit._one_draw_gaps = rec.one_draw_gaps
+    fit._global_search = rec.global_search
+    name = args.case if args.run is None else Path(args.run).name
+    with tempfile.TemporaryDirectory() as tmp:
+        run_dir = Path(args.run) if args.run is not None else Path(tmp) / args.case
+        if args.run is None:
+            make_case(run_dir, **CASES[args.case])
+        diag = diagnose_run(run_dir, workers=1, seed=args.seed, progress=False)
+    out = {
+        "case": name,
+        "diagnosis_seed": args.seed,
+        "selected": diag["selected"],
+        "unexplained": diag["unexplained"],
+        "flights": diag["design"]["work"]["flights"],
+        "savings": [savings(rec, s) for s in CHECK_SHARES] + [savings(rec, 0.0, margin=0)],
+    }
+    # where the flights are along the protocol (the main problem, every simulation)
+    main_key = max(rec.problems, key=lambda k: rec.problems[k]["n_entries"])
+    per = sum(s[1] for s in rec.sims if s[0] == main_key)
+    cum = np.cumsum(per) / per.sum()
+    out["protocol_share_at_flights_share"] = {
+        f"{q:.2f}": float(np.searchsorted(cum, q) / len(per)) for q in (0.25, 0.5, 0.75, 0.9)
+    }
+    print(json.dumps(out, indent=1))
+    path = ROOT / "benchmarks" / "results" / f"early_stop_{name}.json"
+    path.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+
+
+if __name__ == "__main__":
+    main()

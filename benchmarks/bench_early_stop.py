@@ -44,6 +44,9 @@ from scipy.optimize._differentialevolution import DifferentialEvolutionSolver
 import bouncelab.gap.fit as fit
 from bouncelab.gap.diagnose import diagnose_run
 
+COUNTED_STEP_GAPS = fit.counted_step_gaps
+PROTOCOL_FLIGHT_TIMES = fit.protocol_flight_times
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_independent import CASES  # noqa: E402
 from independent_rig import make_case  # noqa: E402
@@ -57,28 +60,23 @@ class Recorder:
 
     def __init__(self):
         self.sims = []  # (problem key, flights per protocol entry, kernel flights, gaps, draws)
+        self._per_entry = np.zeros(0)
         self.problems = {}  # problem key -> what the partial objective needs
         self.generations = []  # (first sim index, end sim index, parent objectives, values)
 
-    def one_draw_gaps(self, problem, model, buffer, shift):
-        """:func:`bouncelab.gap.fit._one_draw_gaps`, recording flights and gaps."""
-        before = buffer.flights
-        proto = problem.protocol
-        sim = fit.protocol_flight_times(
-            model,
-            proto["gamma"].to_numpy(),
-            proto["cycles"].to_numpy(),
-            settle_cycles=int(problem.run.settle_cycles),
-            gamma_factors=1.0
-            + fit.member_offsets(max(1, problem.n_members))
-            + shift * fit.MEMBER_SPREAD,
-            chatter_eps=fit.resolution_T(problem.run, fit.CHATTER_SAMPLES),
-            buffer=buffer,
-            min_contact=problem.min_contact,
-        )
-        gaps = fit._ensemble_min_gaps(problem, sim)
+    def protocol_flight_times(self, *args, **kwargs):
+        """:func:`bouncelab.physics.simulate.protocol_flight_times`, keeping the flights
+        per protocol entry of its simulation."""
+        sim = PROTOCOL_FLIGHT_TIMES(*args, **kwargs)
+        self._per_entry = np.bincount(sim["step"], minlength=len(args[1])).astype(float)
+        return sim
+
+    def counted_step_gaps(self, problem, model, buffer=None, shift=0.0):
+        """:func:`bouncelab.gap.fit.counted_step_gaps`, recording each evaluation."""
+        gaps, flights = COUNTED_STEP_GAPS(problem, model, buffer, shift)
         key = id(problem)
         if key not in self.problems:
+            proto = problem.protocol
             entry = {s: j for j, s in enumerate(proto["step"].to_numpy())}  # last entry
             self.problems[key] = {
                 "n_entries": len(proto),
@@ -87,9 +85,9 @@ class Recorder:
                 "weights": problem.weights.copy(),
                 "cap": fit.GAP_CAP * problem.floor,
             }
-        per_entry = np.bincount(sim["step"], minlength=len(proto)).astype(float)
-        self.sims.append((key, per_entry, buffer.flights - before, gaps, problem.n_draws))
-        return gaps
+        # with n_draws > 1 the entries are the last draw's (such evaluations are skipped)
+        self.sims.append((key, self._per_entry, flights, gaps, problem.n_draws))
+        return gaps, flights
 
     def global_search(self, ev, lift, sub, z0, popsize, maxiter, settings, seed):
         """:func:`bouncelab.gap.fit._global_search` with scipy's solver held, so that the
@@ -185,7 +183,8 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0, help="the diagnosis's seed")
     args = p.parse_args()
     rec = Recorder()
-    fit._one_draw_gaps = rec.one_draw_gaps
+    fit.counted_step_gaps = rec.counted_step_gaps
+    fit.protocol_flight_times = rec.protocol_flight_times
     fit._global_search = rec.global_search
     name = args.case if args.run is None else Path(args.run).name
     with tempfile.TemporaryDirectory() as tmp:

@@ -7,8 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from diag_synth import duration_s, pseudo_flights, write_run
 
+import bouncelab.gap.fit as fit
 from bouncelab.gap.fit import FitSettings, FreeParam, _global_search
+from bouncelab.physics import Model
+from bouncelab.runs import load_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from bench_early_stop import Recorder, savings, stop_point  # noqa: E402
@@ -99,3 +103,28 @@ def test_the_hooked_search_is_the_fits_search():
     x_hook = Recorder().global_search(ev_hook, lift, *args)
     np.testing.assert_array_equal(x_fit, x_hook)
     assert ev_fit.n == ev_hook.n
+
+
+def test_the_hooks_record_every_evaluation_of_a_fit_and_leave_it_unchanged(tmp_path, monkeypatch):
+    """With the benchmark's hooks on :mod:`bouncelab.gap.fit`, a small fit gives the same
+    result, and the recorded evaluations add up to its flights, each generation after the
+    first with its parents' objectives."""
+    run_dir = write_run(tmp_path)
+    flights = pseudo_flights(run_dir, Model.parse("restitution", {"e": 0.4}), seed=3)
+    problem = fit.make_problem(load_run(run_dir), flights, duration_s(), n_members=2)
+    settings = FitSettings(popsize=4, maxiter=3, local_evals=2)
+    plain = fit.fit_model(problem, "restitution", settings=settings, seed=1)
+
+    rec = Recorder()
+    monkeypatch.setattr(fit, "counted_step_gaps", rec.counted_step_gaps)
+    monkeypatch.setattr(fit, "protocol_flight_times", rec.protocol_flight_times)
+    monkeypatch.setattr(fit, "_global_search", rec.global_search)
+    hooked = fit.fit_model(problem, "restitution", settings=settings, seed=1)
+
+    assert hooked.model.params == plain.model.params
+    assert hooked.objective == plain.objective and hooked.flights == plain.flights
+    assert sum(s[2] for s in rec.sims) == hooked.flights
+    assert len(rec.generations) >= 2 and rec.generations[0][2] is None
+    assert all(len(g[2]) == len(g[3]) for g in rec.generations[1:])
+    s = savings(rec, 0.0)
+    assert 0 < s["trials"] and 0.0 <= s["saved_share_of_flights"] < 1.0

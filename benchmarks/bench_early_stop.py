@@ -21,6 +21,11 @@ then (a step's entry and the next one simulated) exceed the parent's objective, 
 counts the flights after it as saved. Flights per entry are the rows the fits read,
 scaled to the evaluation's kernel count.
 
+Also measured, for comparison: a racing rule, which is not exact. It stops a trial once
+it trails its parent over the steps simulated so far by more than a share (5, 10, 20 %)
+of the parent's objective. That saves more but stops some trials that would have won,
+so the searches change; the record counts those winners.
+
 Measures, prints and writes ``benchmarks/results/early_stop_<case>.json``.
 Run: ``python benchmarks/bench_early_stop.py [--case seed_like_long_steps | --run DIR]
 [--seed 0]`` (cases of ``bench_independent.py``, made in a temporary folder); about 3
@@ -53,6 +58,7 @@ from independent_rig import make_case  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CHECK_SHARES = (0.0, 0.05, 0.1, 0.2)  # 0: a check after every protocol entry
+RACING_LEADS = (0.05, 0.1, 0.2)  # of the parent's objective
 
 
 class Recorder:
@@ -123,27 +129,53 @@ class Recorder:
             return solver.solve().x
 
 
-def stop_point(problem: dict, gaps, per_entry, flights, bound, every, margin=1):
-    """``(flights saved, share of the protocol run)`` when a trial of per-step ``gaps``
-    stops at the first check (every ``every`` entries) where the steps complete by then
-    exceed ``bound``; a step is complete once ``margin`` more entries have run."""
+def step_parts(problem: dict, gaps) -> np.ndarray:
+    """Each step's part of the objective (the fits' weighted mean of clipped gaps over
+    the fit steps; 0 on held-out steps), shape (G,): they add up to the objective."""
     fit_steps = problem["fit"]
     w = problem["weights"]
-    part = np.where(fit_steps, w * np.minimum(gaps, problem["cap"]), 0.0) / w[fit_steps].sum()
+    return np.where(fit_steps, w * np.minimum(gaps, problem["cap"]), 0.0) / w[fit_steps].sum()
+
+
+def objective(problem: dict, gaps) -> float:
+    """The fits' objective of per-step ``gaps``, computed as the fits do (the same bits)."""
+    w = problem["weights"][problem["fit"]]
+    return float(np.sum(w * np.minimum(gaps, problem["cap"])[problem["fit"]]) / np.sum(w))
+
+
+def stop_point(
+    problem: dict, gaps, per_entry, flights, bound, every, margin=1, parent=None, lead=0.0
+):
+    """``(flights saved, share of the protocol run)`` when a trial of per-step ``gaps``
+    stops at the first check (every ``every`` entries) where the steps complete by then
+    exceed ``bound`` (exact: the trial has lost); a step is complete once ``margin`` more
+    entries have run. With ``parent`` (its per-step gaps) and ``lead`` > 0, also where
+    the trial trails the parent over those steps by more than ``lead * bound`` (a racing
+    rule, not exact: it can stop a trial that would have won)."""
+    part = step_parts(problem, gaps)
+    ahead = step_parts(problem, parent) if parent is not None and lead > 0 else None
     cost = np.cumsum(per_entry / max(per_entry.sum(), 1.0) * flights)
     n = problem["n_entries"]
     for c in [*range(every, n, every), n]:
-        if part[problem["entry"] + margin < c].sum() > bound:
+        done = problem["entry"] + margin < c
+        mine = part[done].sum()
+        if mine > bound or (ahead is not None and mine > ahead[done].sum() + lead * bound):
             return flights - cost[c - 1], c / n
     return 0.0, 1.0
 
 
-def savings(rec: Recorder, share: float, margin: int = 1) -> dict:
+def savings(rec: Recorder, share: float, margin: int = 1, lead: float = 0.0) -> dict:
     """Flights an early stop saves over the recorded diagnosis, checking every ``share``
-    of the protocol's entries (0: after each)."""
+    of the protocol's entries (0: after each); with ``lead`` > 0 the racing rule of
+    :func:`stop_point` too, and the winners it stops are counted."""
     total = sum(s[2] for s in rec.sims)
+    # each objective value's first evaluation: the parents' per-step gaps
+    gaps_of = {}
+    for key, _, _, gaps, draws in rec.sims:
+        if draws == 1:
+            gaps_of.setdefault((key, objective(rec.problems[key], gaps)), gaps)
     de = saved = 0.0
-    trials = stopped = 0
+    trials = stopped = winners = winners_stopped = 0
     where = []
     for start, end, parents, values in rec.generations:
         for key, per_entry, flights, gaps, draws in rec.sims[start:end]:
@@ -151,25 +183,32 @@ def savings(rec: Recorder, share: float, margin: int = 1) -> dict:
             if parents is None or draws != 1:  # the first population has no parents
                 continue
             problem = rec.problems[key]
-            w = problem["weights"][problem["fit"]]
-            value = np.sum(w * np.minimum(gaps, problem["cap"])[problem["fit"]]) / np.sum(w)
+            value = objective(problem, gaps)
             mine = np.flatnonzero(values == value)  # the population slots it was tried in
             if len(mine) == 0:
                 continue
             trials += 1
+            bound = float(parents[mine].max())
+            won = value <= bound
+            winners += won
             every = max(1, round(share * problem["n_entries"]))
+            parent = gaps_of.get((key, bound))
             s, at = stop_point(
-                problem, gaps, per_entry, flights, float(parents[mine].max()), every, margin
+                problem, gaps, per_entry, flights, bound, every, margin, parent, lead
             )
             if s > 0:
                 stopped += 1
+                winners_stopped += won
                 where.append(at)
             saved += s
     return {
         "check_every_share": share,
         "step_margin_entries": margin,
+        "racing_lead": lead,
         "trials": trials,
+        "winners": winners,
         "trials_stopped": stopped,
+        "winners_stopped": winners_stopped,
         "median_stop_share": float(np.median(where)) if where else None,
         "de_share_of_flights": float(de / total),
         "saved_share_of_flights": float(saved / total),
@@ -199,6 +238,8 @@ def main() -> None:
         "unexplained": diag["unexplained"],
         "flights": diag["design"]["work"]["flights"],
         "savings": [savings(rec, s) for s in CHECK_SHARES] + [savings(rec, 0.0, margin=0)],
+        # a racing rule, not exact: what it saves and which winners it stops
+        "racing": [savings(rec, 0.0, lead=lead) for lead in RACING_LEADS],
     }
     # where the flights are along the protocol (the main problem, every simulation)
     main_key = max(rec.problems, key=lambda k: rec.problems[k]["n_entries"])

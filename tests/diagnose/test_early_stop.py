@@ -128,3 +128,21 @@ def test_the_hooks_record_every_evaluation_of_a_fit_and_leave_it_unchanged(tmp_p
     assert all(len(g[2]) == len(g[3]) for g in rec.generations[1:])
     s = savings(rec, 0.0)
     assert 0 < s["trials"] and 0.0 <= s["saved_share_of_flights"] < 1.0
+
+
+def test_racing_stops_a_trial_that_trails_its_parent_early_even_if_it_would_win():
+    """The racing rule compares the steps done with the parent's: a trial 0.3 behind
+    after the first step (lead 0.1 of the parent's 0.4 allows 0.04) is stopped, although
+    its whole objective 0.3 would beat the parent's 0.4: the rule is not exact."""
+    trial = np.array([1.2, 0, 0, 0])  # objective 0.3
+    parent = np.array([0.0, 0, 0, 1.6])  # objective 0.4
+    assert stop_point(problem(), trial, PER_ENTRY, 100, 0.4, 1) == (0.0, 1.0)
+    saved, at = stop_point(problem(), trial, PER_ENTRY, 100, 0.4, 1, parent=parent, lead=0.1)
+    assert (saved, at) == (pytest.approx(50.0), 0.5)
+    rec = Recorder()
+    rec.problems[1] = problem()
+    rec.sims = [(1, PER_ENTRY, 100, parent, 1), (1, PER_ENTRY, 100, trial, 1)]
+    rec.generations = [(0, 1, None, np.array([0.4])), (1, 2, np.array([0.4]), np.array([0.3]))]
+    s = savings(rec, 0.0, lead=0.1)
+    assert (s["winners"], s["winners_stopped"]) == (1, 1)
+    assert savings(rec, 0.0)["winners_stopped"] == 0

@@ -26,10 +26,17 @@ it trails its parent over the steps simulated so far by more than a share (5, 10
 of the parent's objective. That saves more but stops some trials that would have won,
 so the searches change; the record counts those winners.
 
+``--race LEAD`` plays that rule inside the searches instead: a trial it stops loses to
+its parent and leaves the fit's cloud, as in a simulation that had stopped (every trial
+is still simulated whole, so this judges the rule's answers, not its time). It writes
+the diagnosis's answer and the share of flights the rule would have saved to
+``early_stop_<run>_race<LEAD>.json``: compare the answer with the recorded one, over
+fresh seeds, before building a resumable simulation.
+
 Measures, prints and writes ``benchmarks/results/early_stop_<case>.json``.
 Run: ``python benchmarks/bench_early_stop.py [--case seed_like_long_steps | --run DIR]
-[--seed 0]`` (cases of ``bench_independent.py``, made in a temporary folder); about 3
-minutes a run.
+[--seed 0] [--race LEAD]`` (cases of ``bench_independent.py``, made in a temporary
+folder); about 3 minutes a run.
 """
 
 from __future__ import annotations
@@ -64,7 +71,11 @@ RACING_LEADS = (0.05, 0.1, 0.2)  # of the parent's objective
 class Recorder:
     """Hooks on :mod:`bouncelab.gap.fit` that record every simulation and DE generation."""
 
-    def __init__(self):
+    def __init__(self, race_lead: float | None = None):
+        self.race_lead = race_lead  # play the racing rule in the searches (see _race)
+        self.race_saved = 0.0  # flights the stopped trials would not have simulated
+        self.race_stopped = 0  # evaluations the rule stopped
+        self._gaps_of = {}  # (problem key, objective) -> per-step gaps: the parents
         self.sims = []  # (problem key, flights per protocol entry, kernel flights, gaps, draws)
         self._per_entry = np.zeros(0)
         self.problems = {}  # problem key -> what the partial objective needs
@@ -93,6 +104,8 @@ class Recorder:
             }
         # with n_draws > 1 the entries are the last draw's (such evaluations are skipped)
         self.sims.append((key, self._per_entry, flights, gaps, problem.n_draws))
+        if problem.n_draws == 1:
+            self._gaps_of.setdefault((key, objective(self.problems[key], gaps)), gaps)
         return gaps, flights
 
     def global_search(self, ev, lift, sub, z0, popsize, maxiter, settings, seed):
@@ -108,6 +121,8 @@ class Recorder:
             parents = None if np.all(np.isinf(energies)) else energies.copy()
             start = len(self.sims)
             values = ev.many([lift(z) for z in zs])
+            if self.race_lead is not None and parents is not None:
+                values = self._race(ev, start, parents, values)
             self.generations.append((start, len(self.sims), parents, np.array(values)))
             return values
 
@@ -127,6 +142,40 @@ class Recorder:
         ) as solver:
             held["solver"] = solver
             return solver.solve().x
+
+    def _race(self, ev, start: int, parents, values) -> list[float]:
+        """Play the racing rule on one generation, as a search that stopped trials would
+        run: each new evaluation the rule stops (:func:`stop_point`, a check after every
+        entry) loses to its parent (value inf) and leaves the fit's cloud and cache, as a
+        stopped simulation would have no whole gaps; its flights after the stop are
+        counted in ``race_saved``. Every trial is still simulated whole here: this judges
+        the rule's answers, not its time."""
+        values = np.array(values, dtype=float)
+        new = self.sims[start:]
+        first = len(ev.gaps) - len(new)  # the evaluator recorded them in the same order
+        stopped = []
+        for i, (key, per_entry, flights, gaps, draws) in enumerate(new):
+            if draws != 1:
+                continue
+            problem = self.problems[key]
+            slots = np.flatnonzero(values == objective(problem, gaps))
+            if len(slots) == 0:
+                continue
+            bound = float(parents[slots].max())
+            parent = self._gaps_of.get((key, bound))
+            saved, _ = stop_point(
+                problem, gaps, per_entry, flights, bound, 1, 1, parent, self.race_lead
+            )
+            if saved > 0:
+                self.race_saved += saved
+                self.race_stopped += 1
+                values[slots] = np.inf
+                stopped.append(first + i)
+        for j in reversed(stopped):
+            ev._cache.pop(tuple(sorted(fit.decode(ev.free, ev.xs[j]).items())), None)
+            del ev.xs[j]
+            del ev.gaps[j]
+        return list(values)
 
 
 def step_parts(problem: dict, gaps) -> np.ndarray:
@@ -220,8 +269,9 @@ def main() -> None:
     p.add_argument("--case", default="seed_like_long_steps", choices=sorted(CASES))
     p.add_argument("--run", default=None, help="a run folder to diagnose instead of a case")
     p.add_argument("--seed", type=int, default=0, help="the diagnosis's seed")
+    p.add_argument("--race", type=float, default=None, help="play the racing rule with this lead")
     args = p.parse_args()
-    rec = Recorder()
+    rec = Recorder(race_lead=args.race)
     fit.counted_step_gaps = rec.counted_step_gaps
     fit.protocol_flight_times = rec.protocol_flight_times
     fit._global_search = rec.global_search
@@ -231,6 +281,9 @@ def main() -> None:
         if args.run is None:
             make_case(run_dir, **CASES[args.case])
         diag = diagnose_run(run_dir, workers=1, seed=args.seed, progress=False)
+    if args.race is not None:
+        race_out(diag, rec, name, args)
+        return
     out = {
         "case": name,
         "diagnosis_seed": args.seed,
@@ -250,6 +303,25 @@ def main() -> None:
     }
     print(json.dumps(out, indent=1))
     path = ROOT / "benchmarks" / "results" / f"early_stop_{name}.json"
+    path.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+
+
+def race_out(diag: dict, rec: Recorder, name: str, args) -> None:
+    """Print and write the answer of a diagnosis run with the racing rule played."""
+    total = sum(s[2] for s in rec.sims)
+    out = {
+        "case": name,
+        "diagnosis_seed": args.seed,
+        "racing_lead": args.race,
+        "selected": diag["selected"],
+        "unexplained": diag["unexplained"],
+        "final_model": diag["final_model"],
+        "final_rel_gap": diag["final_rel_gap"],
+        "flights_simulated": total,
+        "flights_saved_share": float(rec.race_saved / total),
+    }
+    print(json.dumps(out, indent=1))
+    path = ROOT / "benchmarks" / "results" / f"early_stop_{name}_race{args.race:g}.json"
     path.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
 
 

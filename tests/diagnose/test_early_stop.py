@@ -146,3 +146,26 @@ def test_racing_stops_a_trial_that_trails_its_parent_early_even_if_it_would_win(
     s = savings(rec, 0.0, lead=0.1)
     assert (s["winners"], s["winners_stopped"]) == (1, 1)
     assert savings(rec, 0.0)["winners_stopped"] == 0
+
+
+def test_playing_the_rule_drops_stopped_trials_from_the_cloud_and_keeps_the_best(
+    tmp_path, monkeypatch
+):
+    """``Recorder(race_lead=...)`` plays the rule inside the search: a stopped trial loses
+    and leaves the fit's cloud (a re-proposal is simulated again). With a lead too large
+    to matter only the exact stops act: they lose anyway, so the fit's best is the same."""
+    run_dir = write_run(tmp_path)
+    flights = pseudo_flights(run_dir, Model.parse("restitution", {"e": 0.4}), seed=3)
+    problem = fit.make_problem(load_run(run_dir), flights, duration_s(), n_members=2)
+    settings = FitSettings(popsize=4, maxiter=3, local_evals=2)
+    plain = fit.fit_model(problem, "restitution", settings=settings, seed=1)
+
+    rec = Recorder(race_lead=1e9)
+    monkeypatch.setattr(fit, "counted_step_gaps", rec.counted_step_gaps)
+    monkeypatch.setattr(fit, "protocol_flight_times", rec.protocol_flight_times)
+    monkeypatch.setattr(fit, "_global_search", rec.global_search)
+    raced = fit.fit_model(problem, "restitution", settings=settings, seed=1)
+
+    assert raced.model.params == plain.model.params and raced.objective == plain.objective
+    assert rec.race_stopped > 0 and rec.race_saved > 0
+    assert raced.n_evals == len(rec.sims) - rec.race_stopped

@@ -113,7 +113,7 @@ class Recorder:
         population map sees the parents' objectives."""
         held = {}
 
-        def objective(z):
+        def evaluate(z):  # one trial's objective (the module's objective() is another)
             return ev(lift(z))
 
         def population_map(_func, zs):
@@ -127,7 +127,7 @@ class Recorder:
             return values
 
         with DifferentialEvolutionSolver(
-            objective,
+            evaluate,
             [(p.lower, p.upper) for p in sub],
             rng=seed,  # as differential_evolution(seed=...) passes it
             popsize=fit.population_per_param(popsize, settings.max_population, len(sub)),

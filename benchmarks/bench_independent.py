@@ -68,7 +68,7 @@ CASES = {
     # a subharmonic on the seed's protocol: 78-cycle steps that the fits cut to 47 (an odd
     # 31 dropped from each: the model's subharmonic is then in antiphase with the
     # recording's clock on every other step, but continuous with the body, which is what
-    # the flights see; docs/diagnosis.md section 4, session 17)
+    # the flights see; docs/diagnosis-log.md, session 17)
     "harmonic_k0.5_g0-8": {"g1": 8.0, "step_s": 2.6, "a": 0.06, "k": 0.5, "psi": 2.5, "seed": 44},
     # protocols other than ours: swept down, coarse or few steps, steps starting above the
     # takeoff, long or short steps, chaos only, no drive channel, 8 kHz sampling

@@ -555,7 +555,7 @@ def test_a_refinement_too_short_for_its_evolution_is_skipped():
     the evolution runs all the generations the budget gives. Why 12: the evolution
     first beat the selected values at generation 11 on the logged refinements, and the
     local search alone, run on 8-11 generations in sessions 28-30, gained 1.2 % for
-    17 s (docs/diagnosis.md section 4, session 31)."""
+    17 s (docs/diagnosis-log.md, session 31)."""
     import pandas as pd
 
     from bouncelab.gap import fit
@@ -756,7 +756,7 @@ def test_the_last_rounds_other_ride_load_runs_before_the_extra_seeds(
     first, reaches ``other_gap`` and wins on fresh ensembles (0.5 against 1.0). Within
     one floor (0.9) it settles the run: no extra seed is searched. Above (1.4) the two
     extra seeds are searched with the impacts-only choice, not round 1's, and the best of
-    them (1.2) is taken. Why this order: docs/diagnosis.md section 4, session 31
+    them (1.2) is taken. Why this order: docs/diagnosis-log.md, session 31
     (independent ``seed_like_impacts_only`` 116 s instead of 146 s, the same answer)."""
     from bouncelab.gap import select
 

@@ -45,7 +45,7 @@ def test_the_generators_impacts_only_armature_matches_the_model(tmp_path, contac
     the 20 kHz recording (0.0047 rad), the edges' resolution. The contact time must not
     move it: a generator that compared the body with a plate short of the armature's
     acceleration re-closed the circuit after every takeoff and read 0.018 rad short with
-    80-us contacts (docs/diagnosis.md section 4, session 18)."""
+    80-us contacts (docs/diagnosis-log.md, session 18)."""
     from bouncelab.flights import extract_run
     from bouncelab.physics import Model
     from bouncelab.physics.simulate import simulate_grid

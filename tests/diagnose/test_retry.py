@@ -1,7 +1,7 @@
 """Retries: a diagnosis that leaves the gap unexplained is run again with the next seed,
 and the first that explains the run is reported (:func:`bouncelab.gap.seeds.retry_index`).
 The diagnoses are stand-ins here (a real one needs minutes): what is tested is the rule
-and its wiring; docs/diagnosis.md section 4, session 42, measures what it does."""
+and its wiring; docs/diagnosis-log.md, session 42, measures what it does."""
 
 from __future__ import annotations
 

@@ -103,7 +103,7 @@ def phase_at(t_s, fit: SineFit, freq_hz: float, offset_rad: float = 0.0) -> np.n
 #: ``drive_frequency_hz`` above which :func:`drive_frequency_warning` speaks. Why 0.2 %:
 #: on an independent friction recording (30 Hz) stated at 29.85 Hz (0.5 % off) the
 #: diagnosis took friction + a Gamma miscalibration and called the run unexplained; at
-#: 30.09 Hz (0.3 %) it was right (docs/diagnosis.md section 4, session 37). A function
+#: 30.09 Hz (0.3 %) it was right (docs/diagnosis-log.md, session 37). A function
 #: generator is exact to far better, and :func:`dominant_frequency` reads a step to 0.01 %.
 DRIVE_FREQUENCY_TOLERANCE = 0.002
 

@@ -98,8 +98,8 @@ def worth_a_retry(result: dict) -> bool:
     few steps that is one more draw of the lottery. The shipped ``raw/accel_g2-4`` (two
     held out; restitution and the armature, unexplained at 3.02 +- 2.0 floors) would be
     reported as restitution and friction, explained at 1.36, with mu 0.45 for 0.29: a
-    strong friction standing in for friction and the armature (docs/diagnosis.md
-    section 4, session 42).
+    strong friction standing in for friction and the armature (docs/diagnosis-log.md,
+    session 42).
     """
     margin = result.get("verdict_margin") or {}
     return bool(result["unexplained"]) and int(margin.get("n_heldout") or 0) >= FEW_HELDOUT
@@ -118,8 +118,8 @@ def verdict_margin(problem: Problem, gaps: np.ndarray, limit: float) -> dict:
     when the limit lies within one standard error of the gap (None with one step).
     Why: on the five-seed blind combinations (35 runs) the standard error is 0.21-0.69
     floors (10th-90th percentile; median 0.42); 8 runs end within one of the limit 3, and
-    3 of those 8 sets or verdicts are wrong against 2 of the other 27 (docs/diagnosis.md
-    section 4, session 27).
+    3 of those 8 sets or verdicts are wrong against 2 of the other 27 (docs/diagnosis-log.md,
+    session 27).
     """
     mask = problem.heldout
     ratio = (problem.clipped(np.asarray(gaps, dtype=float)) / problem.floor)[mask]

@@ -12,7 +12,7 @@ compromise value, and can leave little gap (the blind cases ``ool_drag`` and
 of the Gamma steps apart, the compromise splits: mu 0.000 against 0.026 for drag, e
 0.085 against 0.163 for a speed-dependent restitution, while the rig's true friction and
 restitution agree within 9 % of their value in every blind case of one or two effects,
-and within 20 % beside the shaker's armature (docs/diagnosis.md, section 4, session 15).
+and within 20 % beside the shaker's armature (docs/diagnosis-log.md, session 15).
 
 :func:`strength_by_half` refits the one strength parameter of each such selected effect,
 every other parameter held at its final value, on the fit steps of each half;
@@ -30,8 +30,8 @@ from bouncelab.physics.simulate import OutputBuffer
 
 #: The effects checked and their strength parameter. Not the armature: its mass ratio
 #: sits in a flat valley beside friction and restitution, and the true one of the blind
-#: seed-like cases splits by up to 103 % between the halves (docs/diagnosis.md section
-#: 4, session 27).
+#: seed-like cases splits by up to 103 % between the halves (docs/diagnosis-log.md,
+#: session 27).
 DRIFT_PARAMS = {"friction": "mu", "restitution": "e", "harmonic": "a"}
 
 #: A difference between the halves beyond this share of the final value (twice the

@@ -49,14 +49,14 @@ from bouncelab.runs import Run
 #: gap is very rugged in ``k``). 0.5 stands for a low-frequency shaker oscillation, 2 to 5
 #: for harmonic distortion (the seed's fig. 10 uses the third harmonic), 1.5 and 2.5 for
 #: the non-integer multiples CONTRACTS.md section 5 allows (without them an independent
-#: generator's k 1.5 and 2.5 came out as 0.5; docs/diagnosis.md section 4, session 17).
+#: generator's k 1.5 and 2.5 came out as 0.5; docs/diagnosis-log.md, session 17).
 K_CHOICES = (0.5, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
 
 #: The multiples a joint fit may move an already fitted harmonic to, besides its own
 #: (:func:`joint_choices`): a round-1 choice can still be corrected beside another effect,
 #: while the population meets the round-1 ``k`` as often as before the three choices
 #: above were added (over all seven, an independent friction-plus-harmonic run lost its
-#: friction; docs/diagnosis.md section 4, session 17).
+#: friction; docs/diagnosis-log.md, session 17).
 JOINT_K_CHOICES = (0.5, 2.0, 3.0, 4.0)
 
 #: Values tried for the feedback's ``ride_load``: the contract's impacts-only armature (0)
@@ -201,12 +201,12 @@ BOX_MAXITER = 30
 
 #: Fewer generations than this and the refinement is skipped. Why: its evolution starts
 #: with the fitted values in its population and needs many generations to beat them.
-#: Logged in session 28 (docs/diagnosis.md section 4): on the blind refinements of 24-33
+#: Logged in session 28 (docs/diagnosis-log.md): on the blind refinements of 24-33
 #: generations (the four seed-like cases and ``feedback_a``) it first did at generation
 #: 11, 12, 14, 23 and 26; on the independent ``vibration_27hz`` (9 generations) never.
 #: Sessions 28-30 ran such a short refinement as its local search alone: on that run it
 #: gained 1.2 % of the fit-step objective, changed no verdict, and cost about 17 s of a
-#: 126 s diagnosis (goal 120 s; section 4, session 31). Below 8 generations (the shipped
+#: 126 s diagnosis (goal 120 s; docs/diagnosis-log.md, session 31). Below 8 generations (the shipped
 #: 7650-cycle sweep gets 4) the whole refinement had made ``sweep_g0-8`` 147 s for 89 s.
 REFINE_MIN_GENERATIONS = 12
 

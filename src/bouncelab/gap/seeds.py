@@ -14,7 +14,7 @@ Without a seed check, a diagnosis that leaves the gap unexplained (on at least f
 held-out steps) is run again with the next seed (:data:`RETRIES` times at most) and the
 first that explains the run is reported (:func:`retry_index`): most of the lottery's
 misses are a search that did not find the true model, and they end unexplained
-(docs/diagnosis.md section 4, session 42).
+(docs/diagnosis-log.md, session 42).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from collections import Counter
 #: on the stored fresh-seed diagnoses (seeds 5-13, the five blind combinations with an
 #: armature or a harmonic) 15 of 45 came out unexplained, all wrong, and the next seed
 #: explained 12 of them, 10 with the true effects: 36 of 45 verdicts right against 26
-#: (docs/diagnosis.md section 4, session 42). Each retry costs a whole diagnosis, paid by
+#: (docs/diagnosis-log.md, session 42). Each retry costs a whole diagnosis, paid by
 #: every run whose cause is outside the library.
 RETRIES = 1
 
@@ -61,7 +61,7 @@ def majority_index(results: list[dict]) -> int:
     on 33 of 35 combinations and 140 of 140 single effects, one seed's on 30 and 139.
     Why the gap between equals: on the independent ``friction_restitution_harmonic``
     seeds 1, 2 and 3 all differ, and only seed 2's is right, explained at 1.21 floors
-    against 3.15 and more (docs/diagnosis.md section 4, session 38).
+    against 3.15 and more (docs/diagnosis-log.md, session 38).
     """
     if not results:
         raise ValueError("majority_index needs at least one diagnosis")
@@ -156,7 +156,7 @@ def retry_index(results: list[dict]) -> int:
     may have missed it. On the in-library blind combinations an unexplained verdict was
     always wrong. The risk is on runs whose cause is outside the library, where a second
     search could find a stand-in that explains the run: none did on the 16 such runs
-    measured (docs/diagnosis.md section 4, session 42).
+    measured (docs/diagnosis-log.md, session 42).
     """
     if not results:
         raise ValueError("retry_index needs at least one diagnosis")

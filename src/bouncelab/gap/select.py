@@ -80,8 +80,8 @@ SPLITS = {"k": ("harmonic", K_CHOICES), "ride_load": ("feedback", RIDE_LOAD_CHOI
 #: (four seeds; the truth 1.53), and the last round then compares that draw with a
 #: Gamma miscalibration within the ``tie``: with other diagnosis seeds the blind
 #: ``g_seed_like`` (2.28 against 2.32 floors) and ``seed_like_c`` (1.64 against 1.88)
-#: took the miscalibration, the simpler of two tied additions (docs/diagnosis.md,
-#: section 4, session 21). Seeds ``seed + j * SEED_STRIDE``, ``j < ARMATURE_SEEDS``.
+#: took the miscalibration, the simpler of two tied additions (docs/diagnosis-log.md,
+#: session 21). Seeds ``seed + j * SEED_STRIDE``, ``j < ARMATURE_SEEDS``.
 ARMATURE_SEEDS = 3
 SEED_STRIDE = 7919
 
@@ -201,7 +201,7 @@ class WorkTally:
     """Flights one diagnosis's fits have simulated (:attr:`FitResult.flights`, every fit
     counted once, kept or not): the diagnosis's work, deterministic, reported as
     ``design.work``. Why: a diagnosis's time follows the flights its kernels simulate
-    (chatter makes several a cycle), not its cycles (docs/diagnosis.md section 4,
+    (chatter makes several a cycle), not its cycles (docs/diagnosis-log.md,
     session 30)."""
 
     flights: int = 0
@@ -299,8 +299,8 @@ def armature_choice(fits: dict[float, FitResult], kept: float, problem: Problem)
     2 by a first version of this rule) the two fits came out at
     3.34 and 3.76 floors, on fresh ensembles at 3.86 and 3.90 (standard deviations 0.17,
     0.07): the lesser took the selection on to a harmonic instead of friction. On the
-    independent seed-like recording (before its generator's fix, docs/diagnosis.md
-    section 4, session 18) the impacts-only armature was 0.77 floors on fresh ensembles
+    independent seed-like recording (before its generator's fix, docs/diagnosis-log.md,
+    session 18) the impacts-only armature was 0.77 floors on fresh ensembles
     against 1.61 for the loaded one: a clear win, taken. The other choice's
     evaluations count in the kept fit's ``n_evals`` either way.
     """
@@ -355,7 +355,7 @@ def _armature_contends(tried, problem: Problem, floor: float, settings: SelectSe
 
     Why: each costs as much as all other additions of the round, and where the armature
     is not an effect they bought nothing. Measured in last rounds (first search against
-    the best other addition, in floors; docs/diagnosis.md section 4, session 26): a true
+    the best other addition, in floors; docs/diagnosis-log.md, session 26): a true
     armature led or trailed by at most 0.13 (blind ``seed_like_b`` seed 1: 1.97 against
     1.84), on nine runs; a false one trailed by 0.35 or more, or nothing else gained
     (independent ``friction_restitution_harmonic``: 2.56 against 2.20, about 100 s of
@@ -390,7 +390,7 @@ def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally
     choice: where that choice settles the run, the seeds are saved (independent
     ``seed_like_impacts_only``: the other choice at 0.94 floors with the same final
     model as the seeds first, 302 million flights for 384, 116 s for 146 s;
-    docs/diagnosis.md section 4, sessions 30-31).
+    docs/diagnosis-log.md, sessions 30-31).
     """
     if job is None or ARMATURE_SEEDS <= 1:
         return tried
@@ -478,7 +478,7 @@ def _runner_up_start(rounds, accepted, problem: Problem, floor: float, tie: floa
     2.6-3.4): on the blind ``seed_like_c`` and ``seed_like_b`` with diagnosis seed 3
     the start from the current model ended at 1.77 and 2.69 floors (mu 0.025), the start
     from round 2's friction + restitution at 0.93 and 1.33 with lower fit-step
-    objectives (docs/diagnosis.md section 4, sessions 21-22). A harmonic does the same:
+    objectives (docs/diagnosis-log.md, sessions 21-22). A harmonic does the same:
     on the independent ``friction_restitution_harmonic`` (mu 0.2, e 0.4, a 0.05) round
     3's friction from restitution + harmonic reached 2.65 floors against 2.62 without
     it, from round 2's friction + restitution 2.20, and friction is taken (session 24).
@@ -524,7 +524,7 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
     recording with friction (mu 0.2) and a Gamma miscalibration (s 0.93) a heavily
     damped loaded armature (zeta 0.56) came out at 1.13 floors alone, within the floor,
     where friction alone reached 4.9 and the miscalibration 3.8; the pair reaches 0.12
-    (docs/diagnosis.md section 4, session 23). Only for an armature taken alone: a round
+    (docs/diagnosis-log.md, session 23). Only for an armature taken alone: a round
     of fits without the armature costs little beside one with it. Called where the
     armature alone would end the selection: at its stop, and before a strict round
     (:class:`SelectSettings`), which would otherwise go on from the armature (that
@@ -601,7 +601,7 @@ def box_refinement(
     fresh ensembles): one parameter 0.02 off the truth costs more than a floor, yet the
     straight path from the fit to the truth descends all the way. A search of 24 over
     30 generations in the box of :data:`bouncelab.gap.fit.BOX_SHARE` found it (mu, e,
-    a, psi within 1.3 %, 0.2 %, 0.4 %, 0.7 %; docs/diagnosis.md section 4, session 25).
+    a, psi within 1.3 %, 0.2 %, 0.4 %, 0.7 %; docs/diagnosis-log.md, session 25).
     Not for models with the armature (:func:`forward_select`): they are refined on the
     expected gap, their misses are flat valleys rather than holes (blind ``seed_like_c``:
     the box's fit scored 1.21 floors on fresh ensembles against the fit's 1.07), and an
@@ -711,7 +711,7 @@ def forward_select(
         effect that stands in for a missing one can bring the flight times within the
         floor while the phases show the model wrong (an armature in place of friction:
         the blind seed-like cases with other diagnosis seeds, phases -0.18 to -0.46 rad;
-        docs/diagnosis.md section 4, session 21).
+        docs/diagnosis-log.md, session 21).
     interval : ``(fit, problem, step index) -> {param: [lo, hi]}``, the intervals the
         diagnosis reports for a step (its ``params_ci``). With two or more effects
         selected, the last one is dropped (and the model before it refitted) when its
@@ -720,7 +720,7 @@ def forward_select(
         outputs of session 26 this separates the 4 spurious later effects from 51 true
         ones (a harmonic of a 0.008 after restitution, a Gamma miscalibration of s
         0.99); the round fits' intervals are too narrow to do it at selection time
-        (docs/diagnosis.md section 4, session 26).
+        (docs/diagnosis-log.md, session 26).
 
     Returns
     -------

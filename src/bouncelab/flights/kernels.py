@@ -98,19 +98,28 @@ def block_levels_serial(x, block, lo0, hi0, min_count):
                 clo = slo / nlo
             if nhi >= min_count:
                 chi = shi / nhi
-        ss = 0.0
-        cnt = 0
         if nlo >= min_count:
             lo[b] = clo
-            ss += qlo - slo * slo / nlo
-            cnt += nlo - 1
         if nhi >= min_count:
             hi[b] = chi
-            ss += qhi - shi * shi / nhi
-            cnt += nhi - 1
-        if cnt > 0:
-            sd[b] = math.sqrt(max(ss, 0.0) / cnt)
+        sd[b] = pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
     return lo, hi, frac_hi, sd
+
+
+@njit(cache=True, nogil=True)
+def pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count):
+    """Pooled standard deviation (volts) of the samples near either level, from each
+    level's sum ``s``, sum of squares ``q`` and count ``n``; a level with fewer than
+    ``min_count`` samples is left out, NaN when both are."""
+    ss = 0.0
+    cnt = 0
+    if nlo >= min_count:
+        ss += qlo - slo * slo / nlo
+        cnt += nlo - 1
+    if nhi >= min_count:
+        ss += qhi - shi * shi / nhi
+        cnt += nhi - 1
+    return math.sqrt(max(ss, 0.0) / cnt) if cnt > 0 else np.nan
 
 
 @njit(cache=True)
@@ -758,15 +767,7 @@ def _level_block(x, a, e, clo, chi, min_count, rec, row):
     if nhi >= min_count:
         chi = shi / nhi
     rec[row, _FRAC] = nabove / (e - a)
-    ss = 0.0
-    cnt = 0
-    if nlo >= min_count:
-        ss += qlo - slo * slo / nlo
-        cnt += nlo - 1
-    if nhi >= min_count:
-        ss += qhi - shi * shi / nhi
-        cnt += nhi - 1
-    rec[row, _SD] = math.sqrt(max(ss, 0.0) / cnt) if cnt > 0 else np.nan
+    rec[row, _SD] = pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
     return clo, chi
 
 
@@ -819,15 +820,7 @@ def _level_block_plain(x, a, e, clo, chi, min_count, rec, row):
     rec[row, _IT + _NLO] = nlo
     rec[row, _IT + _NHI] = nhi
     rec[row, _FRAC] = nabove / (e - a)
-    ss = 0.0
-    cnt = 0
-    if nlo >= min_count:
-        ss += qlo - slo * slo / nlo
-        cnt += nlo - 1
-    if nhi >= min_count:
-        ss += qhi - shi * shi / nhi
-        cnt += nhi - 1
-    rec[row, _SD] = math.sqrt(max(ss, 0.0) / cnt) if cnt > 0 else np.nan
+    rec[row, _SD] = pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
     return clo, chi
 
 

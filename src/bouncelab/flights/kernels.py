@@ -63,47 +63,50 @@ def block_levels_serial(x, block, lo0, hi0, min_count):
     for b in range(nb):
         a = b * block
         e = min(n, a + block)
-        slo = 0.0
-        shi = 0.0
-        qlo = 0.0
-        qhi = 0.0
-        nlo = 0
-        nhi = 0
-        for _ in range(2):
-            gap = chi - clo
-            blo = clo + 0.25 * gap
-            bhi = chi - 0.25 * gap
-            mid = 0.5 * (clo + chi)
-            slo = 0.0
-            shi = 0.0
-            qlo = 0.0
-            qhi = 0.0
-            nlo = 0
-            nhi = 0
-            nabove = 0
-            for i in range(a, e):
-                v = x[i]
-                if v > mid:
-                    nabove += 1
-                if v < blo:
-                    slo += v
-                    qlo += v * v
-                    nlo += 1
-                elif v > bhi:
-                    shi += v
-                    qhi += v * v
-                    nhi += 1
-            frac_hi[b] = nabove / (e - a)
-            if nlo >= min_count:
-                clo = slo / nlo
-            if nhi >= min_count:
-                chi = shi / nhi
+        clo, chi, slo, qlo, nlo, shi, qhi, nhi, nabove = two_pass_levels(
+            x, a, e, clo, chi, min_count
+        )
+        frac_hi[b] = nabove / (e - a)
         if nlo >= min_count:
             lo[b] = clo
         if nhi >= min_count:
             hi[b] = chi
         sd[b] = pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
     return lo, hi, frac_hi, sd
+
+
+@njit(cache=True, nogil=True)
+def two_pass_levels(x, a, e, clo, chi, min_count):
+    """One block ``x[a:e]`` of :func:`block_levels_serial`: two passes of banded means
+    from the carried levels ``(clo, chi)``.
+
+    Returns the new levels and the second pass's sums: ``(clo, chi, slo, qlo, nlo, shi,
+    qhi, nhi, nabove)`` (sum, sum of squares and count of the samples in the low and the
+    high band; samples above the mid level).
+    """
+    slo = shi = qlo = qhi = 0.0
+    nlo = nhi = nabove = 0
+    for _ in range(2):
+        blo, mid, bhi = _band_edges(clo, chi)
+        slo = shi = qlo = qhi = 0.0
+        nlo = nhi = nabove = 0
+        for i in range(a, e):
+            v = x[i]
+            if v > mid:
+                nabove += 1
+            if v < blo:
+                slo += v
+                qlo += v * v
+                nlo += 1
+            elif v > bhi:
+                shi += v
+                qhi += v * v
+                nhi += 1
+        if nlo >= min_count:
+            clo = slo / nlo
+        if nhi >= min_count:
+            chi = shi / nhi
+    return clo, chi, slo, qlo, nlo, shi, qhi, nhi, nabove
 
 
 @njit(cache=True, nogil=True)
@@ -789,30 +792,10 @@ def _store(rec, row, col, r):
 
 @njit(cache=True, nogil=True)
 def _level_block_plain(x, a, e, clo, chi, min_count, rec, row):
-    """:func:`block_levels_serial`'s per-block body verbatim, for levels that are not
-    ordered; its record has NaN brackets (never replayed).  Returns the carried levels."""
-    slo = shi = qlo = qhi = 0.0
-    nlo = nhi = nabove = 0
-    for _ in range(2):
-        blo, mid, bhi = _band_edges(clo, chi)
-        slo = shi = qlo = qhi = 0.0
-        nlo = nhi = nabove = 0
-        for i in range(a, e):
-            v = x[i]
-            if v > mid:
-                nabove += 1
-            if v < blo:
-                slo += v
-                qlo += v * v
-                nlo += 1
-            elif v > bhi:
-                shi += v
-                qhi += v * v
-                nhi += 1
-        if nlo >= min_count:
-            clo = slo / nlo
-        if nhi >= min_count:
-            chi = shi / nhi
+    """:func:`block_levels_serial`'s per-block body (:func:`two_pass_levels`), for levels
+    that are not ordered; its record has NaN brackets (never replayed).  Returns the
+    carried levels."""
+    clo, chi, slo, qlo, nlo, shi, qhi, nhi, nabove = two_pass_levels(x, a, e, clo, chi, min_count)
     rec[row, :] = np.nan
     if not np.isnan(x[a:e]).any():
         rec[row, _MIN] = x[a:e].min()

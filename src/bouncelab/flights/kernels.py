@@ -63,7 +63,7 @@ def block_levels_serial(x, block, lo0, hi0, min_count):
     for b in range(nb):
         a = b * block
         e = min(n, a + block)
-        clo, chi, slo, qlo, nlo, shi, qhi, nhi, nabove = two_pass_levels(
+        clo, chi, slo, qlo, nlo, shi, qhi, nhi, nabove = _two_pass_levels(
             x, a, e, clo, chi, min_count
         )
         frac_hi[b] = nabove / (e - a)
@@ -71,12 +71,12 @@ def block_levels_serial(x, block, lo0, hi0, min_count):
             lo[b] = clo
         if nhi >= min_count:
             hi[b] = chi
-        sd[b] = pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
+        sd[b] = _pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
     return lo, hi, frac_hi, sd
 
 
 @njit(cache=True, nogil=True)
-def two_pass_levels(x, a, e, clo, chi, min_count):
+def _two_pass_levels(x, a, e, clo, chi, min_count):
     """One block ``x[a:e]`` of :func:`block_levels_serial`: two passes of banded means
     from the carried levels ``(clo, chi)``.
 
@@ -110,7 +110,7 @@ def two_pass_levels(x, a, e, clo, chi, min_count):
 
 
 @njit(cache=True, nogil=True)
-def pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count):
+def _pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count):
     """Pooled standard deviation (volts) of the samples near either level, from each
     level's sum ``s``, sum of squares ``q`` and count ``n``; a level with fewer than
     ``min_count`` samples is left out, NaN when both are."""
@@ -770,7 +770,7 @@ def _level_block(x, a, e, clo, chi, min_count, rec, row):
     if nhi >= min_count:
         chi = shi / nhi
     rec[row, _FRAC] = nabove / (e - a)
-    rec[row, _SD] = pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
+    rec[row, _SD] = _pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
     return clo, chi
 
 
@@ -792,10 +792,10 @@ def _store(rec, row, col, r):
 
 @njit(cache=True, nogil=True)
 def _level_block_plain(x, a, e, clo, chi, min_count, rec, row):
-    """:func:`block_levels_serial`'s per-block body (:func:`two_pass_levels`), for levels
+    """:func:`block_levels_serial`'s per-block body (:func:`_two_pass_levels`), for levels
     that are not ordered; its record has NaN brackets (never replayed).  Returns the
     carried levels."""
-    clo, chi, slo, qlo, nlo, shi, qhi, nhi, nabove = two_pass_levels(x, a, e, clo, chi, min_count)
+    clo, chi, slo, qlo, nlo, shi, qhi, nhi, nabove = _two_pass_levels(x, a, e, clo, chi, min_count)
     rec[row, :] = np.nan
     if not np.isnan(x[a:e]).any():
         rec[row, _MIN] = x[a:e].min()
@@ -803,7 +803,7 @@ def _level_block_plain(x, a, e, clo, chi, min_count, rec, row):
     rec[row, _IT + _NLO] = nlo
     rec[row, _IT + _NHI] = nhi
     rec[row, _FRAC] = nabove / (e - a)
-    rec[row, _SD] = pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
+    rec[row, _SD] = _pooled_sd(slo, qlo, nlo, shi, qhi, nhi, min_count)
     return clo, chi
 
 

@@ -48,7 +48,9 @@ def make(flights: pd.DataFrame, gammas, run_id: str, model: pd.DataFrame | None 
     flight-time clusters (a period-n orbit shows n points).
     """
     gammas = list(gammas)
-    fig, axes = new_figure(1, len(gammas), width_in=3.0 * len(gammas), height_in=3.1)
+    # tall enough for square panels with their labels: at 3.1 in tight_layout left the
+    # T_n labels below the figure's bottom edge
+    fig, axes = new_figure(1, len(gammas), width_in=3.0 * len(gammas), height_in=3.6)
     axes = np.atleast_1d(axes)
     panels = []
     for ax, gamma in zip(axes, gammas, strict=True):

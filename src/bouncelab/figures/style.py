@@ -40,6 +40,35 @@ RC = {
 DATA_COLOR = "#222222"
 MODEL_COLOR = "#d62728"
 
+#: Line colours of the model variants after ``ideal`` (black), in the config's order.
+#: Nine, so that the default eight variants each get their own: the house cycle's seven
+#: gave the eighth (``friction+restitution+feedback``) the first's blue.
+VARIANT_COLORS = (
+    "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b",
+    "#17becf", "#1f77b4", "#e377c2", "#bcbd22",
+)  # fmt: skip
+
+
+def variant_styles(names) -> dict[str, dict]:
+    """Line style of each model variant, ``{name: {"color": ..., "ls": ...}}``.
+
+    ``names``: the variants in the order a figure draws them (the config's). ``ideal`` is
+    black; the others take :data:`VARIANT_COLORS` in turn, solid for one effect and dashed
+    for a combination (a ``+`` in the name), so that every figure of a run draws a variant
+    with the same line. Past nine, the colours repeat dotted.
+    """
+    styles = {}
+    others = [n for n in dict.fromkeys(names) if n != "ideal"]
+    for name in dict.fromkeys(names):
+        if name == "ideal":
+            styles[name] = {"color": DATA_COLOR, "ls": "-"}
+            continue
+        i = others.index(name)
+        lap = i // len(VARIANT_COLORS)
+        ls = ":" if lap else ("--" if "+" in name else "-")
+        styles[name] = {"color": VARIANT_COLORS[i % len(VARIANT_COLORS)], "ls": ls}
+    return styles
+
 
 @contextmanager
 def house_style():
@@ -52,6 +81,24 @@ def new_figure(nrows=1, ncols=1, width_in=7.0, height_in=3.6, **kwargs):
     """A Figure and its axes in the house style (call inside :func:`house_style`)."""
     fig, axes = plt.subplots(nrows, ncols, figsize=(width_in, height_in), **kwargs)
     return fig, axes
+
+
+def legend_below(fig, ax, ncol: int = 4, fontsize: float = 7.0) -> None:
+    """One legend of ``ax``'s lines under the whole figure, then ``tight_layout`` above it.
+
+    For figures of many lines (the model variants), where a legend inside the axes hides
+    the lines it names. Reserves one text line (``fontsize`` points, with spacing) per
+    legend row.
+    """
+    handles, labels = ax.get_legend_handles_labels()
+    bottom = 0.0
+    if handles:
+        rows = math.ceil(len(handles) / ncol)
+        fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=fontsize,
+                   frameon=False)  # fmt: skip
+        height_pt = fig.get_figheight() * 72.0
+        bottom = min(0.5, (rows * 1.6 * fontsize + 6.0) / height_pt)
+    fig.tight_layout(rect=(0, bottom, 1, 1))
 
 
 def _clean(value, digits=9):

@@ -170,3 +170,37 @@ def test_diagnosis_text_says_whether_the_seeds_agree(tmp_path):
     assert "Seed 0 left the gap unexplained; shown is seed 1's diagnosis" in text
     text = verdict_text({**diag, "retry": {"seeds": [0, 1], "reported_seed": 0}})
     assert "Seed 0 left the gap unexplained, and so did 1 more seed(s)." in text
+
+
+def test_accepted_effects_caption_shows_the_accelerometer_beside_the_drop_test(tmp_path):
+    """The accelerometer's Gamma scale (``accel_calibration``) is in the caption of the
+    accepted effects, after the drop-test calibration; nothing without it."""
+    import json
+
+    from bouncelab.report.content import diagnosis_blocks
+
+    run = tmp_path / "runs" / "r"
+    run.mkdir(parents=True)
+    diag = {
+        "baseline": {"model": "ideal", "gap": 3.2},
+        "noise_floor": 0.5,
+        "final_gap": 0.4,
+        "unexplained": False,
+        "steps": [{"effect": "gamma_scale", "model": "gamma_scale", "params": {"s": 0.931},
+                   "gap": 0.4, "shrink": 0.8, "warnings": []}],
+        "accel_calibration": {"s": 0.9272, "s_ci": [0.9227, 0.9321], "n_steps": 5},
+    }  # fmt: skip
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+
+    def caption():
+        blocks = diagnosis_blocks(tmp_path, "r", tmp_path / "captions.yaml")
+        (table,) = [b for b in blocks if b.get("caption", "").startswith("Effects accepted")]
+        return table["caption"]
+
+    assert caption() == (
+        "Effects accepted, in order (drop-test calibration: -; "
+        "accelerometer: s = 0.9272 [0.9227, 0.9321])"
+    )
+    del diag["accel_calibration"]
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+    assert caption() == "Effects accepted, in order (drop-test calibration: -)"

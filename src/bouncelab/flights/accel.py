@@ -246,3 +246,106 @@ def compare_run(run_dir: str | Path, **kwargs):
     )
     cont, _ = extract_run(run_dir)
     return compare_methods(cont, acc)
+
+
+#: Steps whose stated Gamma is below this are left out of the Gamma scale: the plate's
+#: amplitude is then small beside the accelerometer's noise and the body's impacts.
+MIN_GAMMA_FOR_SCALE = 0.5
+
+#: Resamples of the steps for the interval of the Gamma scale (seeded: deterministic).
+SCALE_BOOTSTRAP = 2000
+
+
+def plate_gamma_by_step(
+    accel_g, fs, steps, freq_hz, settle_cycles=0, time_s=None, n_harmonics=5, hum_hz=(50.0,)
+) -> pd.DataFrame:
+    """The plate's Gamma per step as an accelerometer on the plate reads it.
+
+    The amplitude of the drive's fundamental in the acceleration, in units of g, is the
+    plate's reduced acceleration ``A omega^2 / g``: what the run's ``gamma_steps`` state.
+    Fitted by least squares with the harmonics and mains hum (:func:`subtract_drive`,
+    impacts left out of the second pass), on each step after its ``settle_cycles``.
+
+    Parameters
+    ----------
+    accel_g : (n,) acceleration in g (the channel's volts over ``accel_v_per_g``).
+    fs : Hz.  steps : DataFrame ``step, gamma, t_start_s, t_end_s``.  freq_hz : Hz.
+    settle_cycles : drive cycles left out at each step's start (the amplitude's ramp).
+    time_s : (n,) or None (then ``index / fs``).
+
+    Returns
+    -------
+    DataFrame, one row per step with at least two drive cycles after its settle cycles:
+    ``step``, ``gamma`` (stated), ``gamma_accel`` (read), ``gamma_accel_se`` (its
+    standard error from the residual's robust scatter, white noise assumed), ``n_samples``.
+    """
+    accel_g = np.asarray(accel_g, dtype=np.float64)
+    n = accel_g.shape[0]
+    rows = []
+    for st in steps.itertuples(index=False):
+        t_from = st.t_start_s + settle_cycles / freq_hz
+        if time_s is None:
+            a, b = max(0, int(np.ceil(t_from * fs))), min(n, int(np.ceil(st.t_end_s * fs)))
+            t = np.arange(a, b) / fs
+        else:
+            a, b = np.searchsorted(time_s, t_from), np.searchsorted(time_s, st.t_end_s)
+            t = np.asarray(time_s[a:b], dtype=np.float64)
+        if b - a < 64 or (b - a) / fs < 2.0 / freq_hz:
+            continue
+        resid, amp, _ = subtract_drive(t, accel_g[a:b], freq_hz, n_harmonics, hum_hz)
+        sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
+        rows.append(
+            {
+                "step": int(st.step),
+                "gamma": float(st.gamma),
+                "gamma_accel": amp,
+                "gamma_accel_se": sigma * float(np.sqrt(2.0 / (b - a))),
+                "n_samples": int(b - a),
+            }
+        )
+    columns = ["step", "gamma", "gamma_accel", "gamma_accel_se", "n_samples"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def gamma_scale_from_accel(by_step: pd.DataFrame, min_gamma: float = MIN_GAMMA_FOR_SCALE):
+    """The Gamma scale ``s`` (true Gamma = ``s`` x stated, CONTRACTS.md section 5) that
+    an accelerometer reads, from :func:`plate_gamma_by_step`.
+
+    ``s`` is the median over steps (stated Gamma >= ``min_gamma``) of read over stated
+    Gamma; ``s_ci`` the 95 % percentile interval of that median over the steps resampled
+    (:data:`SCALE_BOOTSTRAP`, seed 0), so that it holds what differs from step to step
+    (a shaker whose armature the body's impacts load reads differently at each Gamma),
+    not only the noise. Returns ``{"s", "s_ci", "ratio_min", "ratio_max", "n_steps"}``,
+    or None when no step qualifies. As exact as ``accel_v_per_g``: a sensitivity off by
+    some per cent moves ``s`` by as much.
+    """
+    use = by_step[(by_step["gamma"] >= min_gamma) & np.isfinite(by_step["gamma_accel"])]
+    if use.empty:
+        return None
+    ratio = (use["gamma_accel"] / use["gamma"]).to_numpy(dtype=np.float64)
+    rng = np.random.default_rng(0)
+    medians = np.median(rng.choice(ratio, size=(SCALE_BOOTSTRAP, ratio.size)), axis=1)
+    lo, hi = np.quantile(medians, [0.025, 0.975])
+    return {
+        "s": float(np.median(ratio)),
+        "s_ci": [float(lo), float(hi)],
+        "ratio_min": float(ratio.min()),
+        "ratio_max": float(ratio.max()),
+        "n_steps": int(ratio.size),
+    }
+
+
+def accel_gamma_run(run) -> pd.DataFrame | None:
+    """:func:`plate_gamma_by_step` of a sweep run (:class:`bouncelab.runs.Run`) with an
+    ``accel`` channel and its ``accel_v_per_g``; None without either (volts alone do not
+    say what a g is)."""
+    from bouncelab.runs import read_recording, step_table
+
+    if run.kind != "sweep" or "accel" not in run.channels or not run.accel_v_per_g:
+        return None
+    rec = read_recording(run, roles=("accel",))
+    steps = step_table(run, rec.duration_s)
+    accel_g = np.asarray(rec.channels["accel"], dtype=np.float64) / float(run.accel_v_per_g)
+    return plate_gamma_by_step(
+        accel_g, rec.fs, steps, run.drive_frequency_hz, run.settle_cycles, rec.time_s
+    )

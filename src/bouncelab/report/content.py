@@ -254,6 +254,13 @@ def _params_text(params: dict, ci: dict | None = None) -> str:
     return ", ".join(parts) or "-"
 
 
+def _accel_text(accel: dict | None) -> str:
+    """The accelerometer's Gamma scale for the accepted effects' caption, or ''."""
+    if not accel:
+        return ""
+    return "; accelerometer: " + _params_text({"s": accel.get("s")}, {"s": accel.get("s_ci")})
+
+
 def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str = "") -> list[dict]:
     """The gap diagnosis of a sweep run: figure, verdict, candidates, accepted effects,
     regions; or a note saying why it has not been computed (``no_diagnosis``: the
@@ -340,7 +347,9 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
         blocks.append(
             {
                 "type": "table",
-                "caption": f"Effects accepted, in order (drop-test calibration: {cal_text})",
+                "caption": f"Effects accepted, in order (drop-test calibration: {cal_text}"
+                + _accel_text(diag.get("accel_calibration"))
+                + ")",
                 "header": [
                     "effect",
                     "fitted parameters [interval]",

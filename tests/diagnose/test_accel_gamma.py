@@ -1,0 +1,76 @@
+"""The accelerometer's Gamma scale beside the diagnosis (gap.diagnose.accel_calibration,
+accel_warnings): read on the shipped accelerometer run, absent without a channel, one
+warning line for a channel that cannot be read, and the rule of the warnings."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bouncelab.gap.diagnose import accel_calibration, accel_warnings
+from bouncelab.runs import load_run
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_the_shipped_accelerometer_run_reads_its_true_scale():
+    # reference: raw/accel_g2-4 was made by the rig with gamma_scale 1 (config/rig); its
+    # armature moves each step's reading by about 1 %, so 2 % is the tolerance
+    accel, notes = accel_calibration(load_run(REPO / "raw" / "accel_g2-4"))
+    assert notes == []
+    assert abs(accel["s"] - 1.0) < 0.02
+    assert accel["s_ci"][0] <= 1.0 <= accel["s_ci"][1]
+    assert accel["n_steps"] == 5 and len(accel["by_step"]["gamma_accel"]) == 5
+
+
+def test_no_accel_channel_no_calibration():
+    assert accel_calibration(load_run(REPO / "raw" / "sweep_g0-8")) == (None, [])
+
+
+def test_an_unreadable_accel_channel_is_one_warning_and_leaves_raw_alone(tmp_path):
+    run_dir = tmp_path / "broken_accel"
+    shutil.copytree(REPO / "raw" / "accel_g2-4", run_dir)
+    spec = yaml.safe_load((run_dir / "run.yaml").read_text())
+    spec["channels"]["accel"] = 7  # the file has three channels
+    (run_dir / "run.yaml").write_text(yaml.safe_dump(spec))
+    before = {p.name: p.read_bytes() for p in run_dir.iterdir()}
+    accel, notes = accel_calibration(load_run(run_dir))
+    assert accel is None
+    assert len(notes) == 1 and notes[0].startswith("accelerometer not read:")
+    assert "recording.flac" in notes[0] or "run.yaml" in notes[0]
+    assert {p.name: p.read_bytes() for p in run_dir.iterdir()} == before
+
+
+def _accel(s, lo, hi):
+    return {"s": s, "s_ci": [lo, hi], "ratio_min": lo, "ratio_max": hi, "n_steps": 5}
+
+
+def _result(selected, s=None):
+    params = {"s": s} if s is not None else {}
+    return {"selected": selected, "final_model": {"model": "+".join(selected), "params": params}}
+
+
+@pytest.mark.parametrize(
+    ("accel", "result", "warned"),
+    [
+        (None, _result([]), False),
+        # no gamma_scale selected: a reading 1 - 7 % off warns, 1 + 2 % does not
+        (_accel(0.93, 0.925, 0.935), _result(["friction"]), True),
+        (_accel(1.02, 1.015, 1.025), _result(["friction"]), False),
+        # 1 inside the interval: the steps disagree too much to say
+        (_accel(0.95, 0.90, 1.01), _result([]), False),
+        # a fitted gamma_scale near the reading, and one far from it
+        (_accel(0.93, 0.925, 0.935), _result(["gamma_scale"], 0.94), False),
+        (_accel(0.93, 0.925, 0.935), _result(["gamma_scale"], 1.05), True),
+        # with the armature selected the plate's own motion differs per step: no warning
+        (_accel(0.93, 0.925, 0.935), _result(["restitution", "feedback"]), False),
+    ],
+)
+def test_accel_warnings(accel, result, warned):
+    out = accel_warnings(accel, result)
+    assert len(out) == int(warned)
+    if warned:
+        assert f"{accel['s']:.4g}" in out[0]

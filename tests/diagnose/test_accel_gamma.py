@@ -5,6 +5,7 @@ warning line for a channel that cannot be read, and the rule of the warnings."""
 from __future__ import annotations
 
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -74,3 +75,49 @@ def test_accel_warnings(accel, result, warned):
     assert len(out) == int(warned)
     if warned:
         assert f"{accel['s']:.4g}" in out[0]
+
+
+@pytest.fixture(scope="module")
+def miscalibrated_run(tmp_path_factory):
+    """A short rig run whose plate moves at 1.07 x the stated Gamma, rigid shaker, with an
+    accelerometer (reference: the rig's gamma_scale)."""
+    from bouncelab.rig import run_rig
+
+    root = tmp_path_factory.mktemp("accel_fix")
+    cfg = {
+        "kind": "sweep",
+        "seed": 21,
+        "body": {"friction_mu": 0.0, "restitution": 0.0},
+        "drive": {"frequency_hz": 28.0, "gamma_scale": 1.07},
+        "shaker": {"feedback": False},
+        "protocol": {"gammas": [1.2, 1.6, 2.0, 2.4, 2.8, 3.2], "cycles_per_step": 30},
+        "sensors": {"accel": {"enabled": True}},
+    }
+    (root / "c.yaml").write_text(yaml.safe_dump(cfg))
+    run_rig(root / "c.yaml", root / "run", root / "truth.parquet")
+    return root / "run"
+
+
+def test_fix_accel_gamma_holds_s_at_the_reading(miscalibrated_run):
+    from bouncelab.gap.diagnose import diagnose_run
+
+    d = diagnose_run(miscalibrated_run, fix_accel_gamma=True, retries=0)
+    accel = d["accel_calibration"]
+    assert accel["fixed"] is True
+    assert abs(accel["s"] - 1.07) < 0.01 * 1.07  # the reading, against the rig's truth
+    assert d["design"]["fixed"] == {"s": accel["s"]}
+    (candidate,) = [c for c in d["candidates"] if c["effect"] == "gamma_scale"]
+    assert candidate["params"]["s"] == accel["s"]  # held, not fitted
+    assert not any("accelerometer" in w for w in d["input_warnings"])
+
+
+def test_fix_accel_gamma_without_an_accelerometer_is_one_error(tmp_path):
+    out = tmp_path / "d.json"
+    proc = subprocess.run(
+        ["bouncelab", "diagnose", str(REPO / "raw" / "sweep_g0-8"), "-o", str(out),
+         "--fix-accel-gamma"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert proc.returncode != 0 and not out.exists()
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith("error: ") and "sweep_g0-8" in line and "accel" in line

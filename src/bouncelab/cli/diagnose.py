@@ -34,6 +34,12 @@ def add_parser(sub) -> None:
         help="hold mu and e at the calibration's values instead of fitting them",
     )
     p.add_argument(
+        "--fix-accel-gamma",
+        action="store_true",
+        help="hold gamma_scale's s at the Gamma scale the run's accelerometer reads (needs "
+        "an accel channel and accel_v_per_g)",
+    )
+    p.add_argument(
         "--flights",
         metavar="FLIGHTS",
         help="the run's flight table (.parquet/.csv from `bouncelab extract`); "
@@ -101,6 +107,7 @@ def run(args) -> int:
         include_timings=args.timings,
         check_seeds=args.check_seeds,
         retries=RETRIES if args.retries is None else args.retries,
+        fix_accel_gamma=args.fix_accel_gamma,
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")

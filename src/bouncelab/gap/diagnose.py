@@ -327,10 +327,13 @@ def diagnose_flights(
     workers: int | None = None,
     progress: bool | None = None,
     include_timings: bool = False,
+    fixed: dict | None = None,
 ) -> dict:
     """The diagnosis of measured ``flights`` of a sweep ``run`` (see :func:`diagnose_run`).
 
     ``run`` is a :class:`bouncelab.runs.Run`; ``duration_s`` the recording's length (s).
+    ``fixed``: more parameters held at given values in every fit, beside the drop-test
+    calibration's (``{"s": ...}`` from the accelerometer).
     """
     t0 = time.perf_counter()
     fit_settings = fit_settings or FitSettings()
@@ -352,9 +355,9 @@ def diagnose_flights(
         raise BouncelabError(run.yaml_path, short)
     floor = problem.mean(problem.floor, problem.heldout)
 
-    fixed: dict = {}
+    fixed = {k: float(v) for k, v in (fixed or {}).items()}
     if calibration is not None and fix_calibration:
-        fixed = {p: float(calibration[k]) for k, p in CALIBRATION_PARAMS.items()}
+        fixed |= {p: float(calibration[k]) for k, p in CALIBRATION_PARAMS.items()}
 
     summaries: dict = {}
 
@@ -741,6 +744,7 @@ def diagnose_run(
     include_timings: bool = False,
     check_seeds: int = 1,
     retries: int = RETRIES,
+    fix_accel_gamma: bool = False,
 ) -> dict:
     """The sim-to-real gap diagnosis of a sweep run (CONTRACTS.md section 6, more keys).
 
@@ -771,6 +775,9 @@ def diagnose_run(
         :func:`bouncelab.gap.seeds.seed_check` of the seeds tried) and a warning; when none
         does, the first seed's diagnosis, with ``retry``. Each retry costs a whole
         diagnosis, only on runs left unexplained; 0: never.
+    fix_accel_gamma : hold ``gamma_scale``'s ``s`` at the Gamma scale the run's
+        accelerometer reads (:func:`accel_calibration`), as ``fix_calibration`` holds
+        ``mu`` and ``e``; needs an ``accel`` channel and ``accel_v_per_g``.
 
     Returns
     -------
@@ -789,6 +796,14 @@ def diagnose_run(
         raise BouncelabError(None, f"check_seeds must be >= 1, not {check_seeds}")
     if retries < 0:
         raise BouncelabError(None, f"retries must be >= 0, not {retries}")
+    accel, accel_notes = accel_calibration(run)
+    if fix_accel_gamma and accel is None:
+        raise BouncelabError(
+            run.yaml_path,
+            "--fix-accel-gamma needs a readable accel channel and accel_v_per_g"
+            + (f" ({accel_notes[0]})" if accel_notes else ""),
+        )
+    fixed = {"s": accel["s"]} if fix_accel_gamma else None
     qc = None
     if flights is None:
         from bouncelab.flights import extract_run
@@ -815,6 +830,7 @@ def diagnose_run(
             workers=workers,
             progress=progress,
             include_timings=include_timings,
+            fixed=fixed,
         )
 
     shown = progress if progress is not None else sys.stderr.isatty()
@@ -851,10 +867,11 @@ def diagnose_run(
                 result["warnings"].append(retried)
     # the recording's own disagreements with run.yaml: first among the warnings, and
     # apart, for the command line to print
-    accel, accel_notes = accel_calibration(run)
     if accel is not None:
-        result["accel_calibration"] = accel
-    result["input_warnings"] = drive_warnings(run, qc) + accel_notes + accel_warnings(accel, result)
+        result["accel_calibration"] = {**accel, "fixed": bool(fix_accel_gamma)}
+    # held at the reading, a fitted s cannot disagree with it
+    compared = [] if fix_accel_gamma else accel_warnings(accel, result)
+    result["input_warnings"] = drive_warnings(run, qc) + accel_notes + compared
     result["warnings"] = result["input_warnings"] + result["warnings"]
     return result
 

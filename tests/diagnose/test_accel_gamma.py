@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from bouncelab.gap.diagnose import accel_calibration, accel_warnings
+from bouncelab.gap.diagnose import accel_calibration, accel_fixed, accel_warnings
 from bouncelab.runs import load_run
 
 REPO = Path(__file__).resolve().parents[2]
@@ -25,6 +25,7 @@ def test_the_shipped_accelerometer_run_reads_its_true_scale():
     assert abs(accel["s"] - 1.0) < 0.02
     assert accel["s_ci"][0] <= 1.0 <= accel["s_ci"][1]
     assert accel["n_steps"] == 5 and len(accel["by_step"]["gamma_accel"]) == 5
+    assert accel["harmonics"] == []  # the rig's drive there has none
 
 
 def test_no_accel_channel_no_calibration():
@@ -45,13 +46,21 @@ def test_an_unreadable_accel_channel_is_one_warning_and_leaves_raw_alone(tmp_pat
     assert {p.name: p.read_bytes() for p in run_dir.iterdir()} == before
 
 
-def _accel(s, lo, hi):
-    return {"s": s, "s_ci": [lo, hi], "ratio_min": lo, "ratio_max": hi, "n_steps": 5}
+def _accel(s, lo, hi, harmonics=()):
+    return {
+        "s": s, "s_ci": [lo, hi], "ratio_min": lo, "ratio_max": hi, "n_steps": 5,
+        "harmonics": list(harmonics),
+    }  # fmt: skip
 
 
-def _result(selected, s=None):
-    params = {"s": s} if s is not None else {}
+def _result(selected, s=None, **params):
+    if s is not None:
+        params["s"] = s
     return {"selected": selected, "final_model": {"model": "+".join(selected), "params": params}}
+
+
+H3 = {"k": 3, "a": 0.08, "a_ci": [0.079, 0.081], "psi": 1.0}
+H2_WEAK = {"k": 2, "a": 0.012, "a_ci": [0.011, 0.013], "psi": 4.0}
 
 
 @pytest.mark.parametrize(
@@ -68,13 +77,37 @@ def _result(selected, s=None):
         (_accel(0.93, 0.925, 0.935), _result(["gamma_scale"], 1.05), True),
         # with the armature selected the plate's own motion differs per step: no warning
         (_accel(0.93, 0.925, 0.935), _result(["restitution", "feedback"]), False),
+        # a harmonic read at a 0.08 and none selected; a weak one (0.012) only listed
+        (_accel(1.0, 0.99, 1.01, [H3]), _result(["friction"], mu=0.2), True),
+        (_accel(1.0, 0.99, 1.01, [H2_WEAK]), _result(["friction"], mu=0.2), False),
+        # the fitted harmonic at the read one, at another k, and 50 % off in a
+        (_accel(1.0, 0.99, 1.01, [H3]), _result(["harmonic"], k=3.0, a=0.085, psi=1.0), False),
+        (_accel(1.0, 0.99, 1.01, [H3]), _result(["harmonic"], k=2.0, a=0.2, psi=1.6), True),
+        (_accel(1.0, 0.99, 1.01, [H3]), _result(["harmonic"], k=3.0, a=0.04, psi=1.0), True),
+        # a half-integer k is not among the accelerometer's harmonics: nothing to compare
+        (_accel(1.0, 0.99, 1.01, [H3]), _result(["harmonic"], k=2.5, a=0.1, psi=1.0), False),
     ],
 )
 def test_accel_warnings(accel, result, warned):
     out = accel_warnings(accel, result)
     assert len(out) == int(warned)
     if warned:
-        assert f"{accel['s']:.4g}" in out[0]
+        assert "accelerometer reads" in out[0]
+
+
+def test_a_harmonic_fitted_at_another_k_names_the_one_read():
+    (line,) = accel_warnings(
+        _accel(1.0, 0.99, 1.01, [H3]), _result(["harmonic"], k=2.0, a=0.2, psi=1.6)
+    )
+    assert line.startswith("harmonic k = 2, a = 0.2 fitted, but the accelerometer reads none")
+    assert line.endswith("it reads k = 3, a = 0.08 [0.079, 0.081], psi = 1")
+
+
+def test_fix_accel_holds_the_scale_and_the_strongest_harmonic():
+    assert accel_fixed(_accel(0.97, 0.96, 0.98)) == {"s": 0.97}
+    assert accel_fixed(_accel(0.97, 0.96, 0.98, [H3, H2_WEAK])) == {
+        "s": 0.97, "k": 3.0, "a": 0.08, "psi": 1.0,
+    }  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -98,10 +131,10 @@ def miscalibrated_run(tmp_path_factory):
     return root / "run"
 
 
-def test_fix_accel_gamma_holds_s_at_the_reading(miscalibrated_run):
+def test_fix_accel_holds_s_at_the_reading(miscalibrated_run):
     from bouncelab.gap.diagnose import diagnose_run
 
-    d = diagnose_run(miscalibrated_run, fix_accel_gamma=True, retries=0)
+    d = diagnose_run(miscalibrated_run, fix_accel=True, retries=0)
     accel = d["accel_calibration"]
     assert accel["fixed"] is True
     assert abs(accel["s"] - 1.07) < 0.01 * 1.07  # the reading, against the rig's truth
@@ -111,11 +144,11 @@ def test_fix_accel_gamma_holds_s_at_the_reading(miscalibrated_run):
     assert not any("accelerometer" in w for w in d["input_warnings"])
 
 
-def test_fix_accel_gamma_without_an_accelerometer_is_one_error(tmp_path):
+def test_fix_accel_without_an_accelerometer_is_one_error(tmp_path):
     out = tmp_path / "d.json"
     proc = subprocess.run(
         ["bouncelab", "diagnose", str(REPO / "raw" / "sweep_g0-8"), "-o", str(out),
-         "--fix-accel-gamma"],
+         "--fix-accel"],
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert proc.returncode != 0 and not out.exists()

@@ -15,6 +15,7 @@ from bouncelab.flights.accel import (
     compare_methods,
     compare_run,
     gamma_scale_from_accel,
+    harmonics_from_accel,
     plate_gamma_by_step,
     takeoff_phase,
 )
@@ -99,6 +100,14 @@ def test_plate_gamma_read_from_a_synthetic_accelerometer():
     assert abs(scale["s"] - 0.93) < 0.005
     assert scale["s_ci"][0] <= 0.93 <= scale["s_ci"][1]
     assert gamma_scale_from_accel(table[table["gamma"] < 0.5]) is None
+    # the third harmonic of the acceleration, 0.05 of the fundamental at phase 1, is a
+    # position harmonic a = 0.05 / 3^2 (reference: the signal's own terms)
+    assert np.allclose(table["a3"].iloc[1:], 0.05 / 9, atol=0.0015)
+    assert np.allclose(table["psi3"].iloc[2:], 1.0, atol=0.1)
+    assert (table["a2"].iloc[1:] < 0.002).all()
+    assert harmonics_from_accel(table) == []  # 0.0056 is below MIN_HARMONIC_A
+    (h3,) = harmonics_from_accel(table, min_a=0.004)
+    assert h3["k"] == 3 and abs(h3["a"] - 0.05 / 9) < 0.0015
 
 
 def test_plate_gamma_read_on_the_rig(make_rig):
@@ -126,6 +135,27 @@ def test_plate_gamma_read_on_the_rig(make_rig):
     print("accelerometer's Gamma scale, loaded armature:", loaded)
     assert loaded["ratio_max"] - loaded["ratio_min"] > 0.03
     assert loaded["ratio_max"] < 1.07
+
+
+def test_plate_harmonic_read_on_the_rig(make_rig):
+    # reference: the rig's drive harmonic (k 3, a 0.08, psi 1.0) on a rigid shaker;
+    # tolerances 3 % in a and 0.05 rad in psi
+    cfg = {
+        "kind": "sweep",
+        "seed": 31,
+        "drive": {"frequency_hz": 30.0, "harmonics": [{"k": 3.0, "a": 0.08, "psi": 1.0}]},
+        "shaker": {"feedback": False},
+        "protocol": {"gammas": [0.6, 1.5, 2.5, 3.5], "cycles_per_step": 40},
+        "sensors": {"accel": {"enabled": True}},
+    }
+    run_dir, _ = make_rig("accel_harmonic", cfg)
+    table = accel_gamma_run(load_run(run_dir))
+    (h,) = harmonics_from_accel(table)
+    print("accelerometer's harmonic:", h)
+    assert h["k"] == 3
+    assert abs(h["a"] - 0.08) < 0.03 * 0.08
+    assert abs(h["psi"] - 1.0) < 0.05
+    assert abs(gamma_scale_from_accel(table)["s"] - 1.0) < 0.01  # the harmonic leaves Gamma
 
 
 def test_no_accel_channel_reads_nothing(make_rig):

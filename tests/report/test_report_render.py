@@ -201,6 +201,16 @@ def test_accepted_effects_caption_shows_the_accelerometer_beside_the_drop_test(t
         "Effects accepted, in order (drop-test calibration: -; "
         "accelerometer: s = 0.9272 [0.9227, 0.9321])"
     )
+    diag["accel_calibration"] |= {
+        "harmonics": [{"k": 3, "a": 0.0802, "a_ci": [0.0797, 0.0813], "psi": 1.008}],
+        "fixed": True,
+    }
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+    assert caption() == (
+        "Effects accepted, in order (drop-test calibration: -; "
+        "accelerometer: s = 0.9272 [0.9227, 0.9321], harmonic k = 3: "
+        "a = 0.0802 [0.0797, 0.0813], psi = 1.008 (held in the fits))"
+    )
     del diag["accel_calibration"]
     (run / "diagnosis.json").write_text(json.dumps(diag))
     assert caption() == "Effects accepted, in order (drop-test calibration: -)"

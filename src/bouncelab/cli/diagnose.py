@@ -34,10 +34,10 @@ def add_parser(sub) -> None:
         help="hold mu and e at the calibration's values instead of fitting them",
     )
     p.add_argument(
-        "--fix-accel-gamma",
+        "--fix-accel",
         action="store_true",
-        help="hold gamma_scale's s at the Gamma scale the run's accelerometer reads (needs "
-        "an accel channel and accel_v_per_g)",
+        help="hold gamma_scale's s, and the harmonic's k, a, psi when one is read, at what "
+        "the run's accelerometer reads (needs an accel channel and accel_v_per_g)",
     )
     p.add_argument(
         "--flights",
@@ -107,7 +107,7 @@ def run(args) -> int:
         include_timings=args.timings,
         check_seeds=args.check_seeds,
         retries=RETRIES if args.retries is None else args.retries,
-        fix_accel_gamma=args.fix_accel_gamma,
+        fix_accel=args.fix_accel,
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")

@@ -50,6 +50,26 @@ def drive_basis(t, freq_hz, n_harmonics=5, hum_hz=(50.0,)) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
+def drive_fit(t_s, a, freq_hz, n_harmonics=5, hum_hz=(50.0,)):
+    """Least-squares fit of the drive, its harmonics and hum to ``a``, refitted without
+    the impact bursts (samples beyond 4 robust sigmas of the first fit's residual).
+
+    Parameters as :func:`subtract_drive`. Returns the residual (n,) and the coefficients
+    of :func:`drive_basis` (time from ``t_s[0]``): ``coef[2h - 1]``, ``coef[2h]`` are the
+    sine and cosine of harmonic ``h`` (1 = the fundamental).
+    """
+    t = np.asarray(t_s, dtype=np.float64) - float(t_s[0])
+    a = np.asarray(a, dtype=np.float64)
+    m = drive_basis(t, freq_hz, n_harmonics, hum_hz)
+    keep = np.ones(t.shape, dtype=bool)
+    for _ in range(2):  # refit without the impact bursts
+        coef, *_ = np.linalg.lstsq(m[keep], a[keep], rcond=None)
+        resid = a - m @ coef
+        sig = 1.4826 * np.median(np.abs(resid - np.median(resid)))
+        keep = np.abs(resid) < 4.0 * max(sig, 1e-300)
+    return resid, coef
+
+
 def subtract_drive(t_s, a, freq_hz, n_harmonics=5, hum_hz=(50.0,)):
     """Residual of ``a`` after a least-squares fit of the drive, its harmonics and hum.
 
@@ -64,15 +84,7 @@ def subtract_drive(t_s, a, freq_hz, n_harmonics=5, hum_hz=(50.0,)):
     resid : (n,) residual.  amp : fundamental amplitude.  phase0 : plate phase (rad) at
     ``t_s[0]``, from ``a = -amp sin(phi)`` (acceleration opposes position).
     """
-    t = np.asarray(t_s, dtype=np.float64) - float(t_s[0])
-    a = np.asarray(a, dtype=np.float64)
-    m = drive_basis(t, freq_hz, n_harmonics, hum_hz)
-    keep = np.ones(t.shape, dtype=bool)
-    for _ in range(2):  # refit without the impact bursts
-        coef, *_ = np.linalg.lstsq(m[keep], a[keep], rcond=None)
-        resid = a - m @ coef
-        sig = 1.4826 * np.median(np.abs(resid - np.median(resid)))
-        keep = np.abs(resid) < 4.0 * max(sig, 1e-300)
+    resid, coef = drive_fit(t_s, a, freq_hz, n_harmonics, hum_hz)
     s, c = coef[1], coef[2]  # a ~ s sin(w t) + c cos(w t) = amp sin(w t + th)
     amp = float(np.hypot(s, c))
     th = float(np.arctan2(c, s))
@@ -277,7 +289,11 @@ def plate_gamma_by_step(
     -------
     DataFrame, one row per step with at least two drive cycles after its settle cycles:
     ``step``, ``gamma`` (stated), ``gamma_accel`` (read), ``gamma_accel_se`` (its
-    standard error from the residual's robust scatter, white noise assumed), ``n_samples``.
+    standard error from the residual's robust scatter, white noise assumed), ``n_samples``;
+    and per harmonic ``h`` = 2 .. ``n_harmonics`` of the drive, the plate position's
+    harmonic in the model's terms (CONTRACTS.md section 5, ``harmonic`` with ``k = h``):
+    ``a{h}`` (amplitude relative to the fundamental's, so the acceleration's ratio over
+    ``h^2``), ``a{h}_se`` and ``psi{h}`` (rad, in [0, 2 pi), against the plate phase).
     """
     accel_g = np.asarray(accel_g, dtype=np.float64)
     n = accel_g.shape[0]
@@ -292,18 +308,32 @@ def plate_gamma_by_step(
             t = np.asarray(time_s[a:b], dtype=np.float64)
         if b - a < 64 or (b - a) / fs < 2.0 / freq_hz:
             continue
-        resid, amp, _ = subtract_drive(t, accel_g[a:b], freq_hz, n_harmonics, hum_hz)
+        resid, coef = drive_fit(t, accel_g[a:b], freq_hz, n_harmonics, hum_hz)
         sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
-        rows.append(
-            {
-                "step": int(st.step),
-                "gamma": float(st.gamma),
-                "gamma_accel": amp,
-                "gamma_accel_se": sigma * float(np.sqrt(2.0 / (b - a))),
-                "n_samples": int(b - a),
-            }
-        )
+        se = sigma * float(np.sqrt(2.0 / (b - a)))  # of any one sine's amplitude
+        amp = float(np.hypot(coef[1], coef[2]))
+        th1 = float(np.arctan2(coef[2], coef[1]))
+        row = {
+            "step": int(st.step),
+            "gamma": float(st.gamma),
+            "gamma_accel": amp,
+            "gamma_accel_se": se,
+            "n_samples": int(b - a),
+        }
+        for h in range(2, n_harmonics + 1):
+            # plate position Gamma [sin(phi) + a sin(h phi + psi)] has the acceleration
+            # -Gamma [sin(phi) + a h^2 sin(h phi + psi)]; the fit's phases are of time
+            # from the step's start, with phi = w t + th1 + pi
+            amp_h = float(np.hypot(coef[2 * h - 1], coef[2 * h]))
+            th_h = float(np.arctan2(coef[2 * h], coef[2 * h - 1]))
+            scale = max(amp, 1e-300) * h * h
+            row[f"a{h}"] = amp_h / scale
+            row[f"a{h}_se"] = se / scale
+            row[f"psi{h}"] = float(np.mod(th_h - h * (th1 + np.pi) - np.pi, TWO_PI))
+        rows.append(row)
     columns = ["step", "gamma", "gamma_accel", "gamma_accel_se", "n_samples"]
+    for h in range(2, n_harmonics + 1):
+        columns += [f"a{h}", f"a{h}_se", f"psi{h}"]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -333,6 +363,44 @@ def gamma_scale_from_accel(by_step: pd.DataFrame, min_gamma: float = MIN_GAMMA_F
         "ratio_max": float(ratio.max()),
         "n_steps": int(ratio.size),
     }
+
+
+#: Least relative amplitude ``a`` of a harmonic that :func:`harmonics_from_accel`
+#: reports: a loaded armature puts about 0.001 at the harmonics (raw/accel_g2-4), and the
+#: library's harmonic cases have 0.05-0.12.
+MIN_HARMONIC_A = 0.01
+
+
+def harmonics_from_accel(
+    by_step: pd.DataFrame, min_gamma: float = MIN_GAMMA_FOR_SCALE, min_a: float = MIN_HARMONIC_A
+) -> list[dict]:
+    """The drive's harmonics in the plate's motion that an accelerometer reads, in the
+    ``harmonic`` effect's terms, from :func:`plate_gamma_by_step`.
+
+    Per harmonic ``k`` (integer, 2 .. 5): ``a`` the median over the steps with stated
+    Gamma >= ``min_gamma`` with ``a_ci`` (95 % interval of that median, steps resampled,
+    seed ``k``), and ``psi`` the circular mean of the steps' phases weighted by their ``a``.
+    Only harmonics with ``a >= min_a`` and above five standard errors are listed, the
+    strongest first.
+    """
+    use = by_step[by_step["gamma"] >= min_gamma]
+    out = []
+    if use.empty:
+        return out
+    for k in range(2, 10):
+        if f"a{k}" not in use:
+            break
+        a = use[f"a{k}"].to_numpy(dtype=np.float64)
+        psi = use[f"psi{k}"].to_numpy(dtype=np.float64)
+        median = float(np.median(a))
+        if median < min_a or median < 5.0 * float(np.median(use[f"a{k}_se"])):
+            continue
+        rng = np.random.default_rng(k)
+        medians = np.median(rng.choice(a, size=(SCALE_BOOTSTRAP, a.size)), axis=1)
+        lo, hi = np.quantile(medians, [0.025, 0.975])
+        mean_psi = float(np.mod(np.angle(np.sum(a * np.exp(1j * psi))), TWO_PI))
+        out.append({"k": k, "a": median, "a_ci": [float(lo), float(hi)], "psi": mean_psi})
+    return sorted(out, key=lambda h: -h["a"])
 
 
 def accel_gamma_run(run) -> pd.DataFrame | None:

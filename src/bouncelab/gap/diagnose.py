@@ -20,7 +20,13 @@ import numpy as np
 import pandas as pd
 
 from bouncelab.errors import BouncelabError
-from bouncelab.flights.accel import MIN_GAMMA_FOR_SCALE, accel_gamma_run, gamma_scale_from_accel
+from bouncelab.flights.accel import (
+    MIN_GAMMA_FOR_SCALE,
+    MIN_HARMONIC_A,
+    accel_gamma_run,
+    gamma_scale_from_accel,
+    harmonics_from_accel,
+)
 from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
 from bouncelab.gap.features import circular_mean, compare_features, wrap_angle
 from bouncelab.gap.fit import (
@@ -95,6 +101,14 @@ FEW_HELDOUT = 5
 #: miscalibrations are 6-7 %, and an armature that the body loads moves one step's
 #: reading by about 1 % (raw/accel_g2-4: 0.993-1.010 for a true 1).
 ACCEL_SCALE_TOL = 0.03
+
+#: A harmonic the accelerometer reads at this relative amplitude or more is one the flight
+#: times should show (the blind harmonic cases: a 0.06-0.12); weaker ones are only listed.
+ACCEL_HARMONIC_WARN = 0.03
+
+#: Relative distance between a fitted harmonic's ``a`` and the accelerometer's beyond
+#: which (with the reading's interval clear of it) a warning says so.
+ACCEL_HARMONIC_REL = 0.3
 
 
 def worth_a_retry(result: dict) -> bool:
@@ -744,7 +758,7 @@ def diagnose_run(
     include_timings: bool = False,
     check_seeds: int = 1,
     retries: int = RETRIES,
-    fix_accel_gamma: bool = False,
+    fix_accel: bool = False,
 ) -> dict:
     """The sim-to-real gap diagnosis of a sweep run (CONTRACTS.md section 6, more keys).
 
@@ -775,9 +789,11 @@ def diagnose_run(
         :func:`bouncelab.gap.seeds.seed_check` of the seeds tried) and a warning; when none
         does, the first seed's diagnosis, with ``retry``. Each retry costs a whole
         diagnosis, only on runs left unexplained; 0: never.
-    fix_accel_gamma : hold ``gamma_scale``'s ``s`` at the Gamma scale the run's
-        accelerometer reads (:func:`accel_calibration`), as ``fix_calibration`` holds
-        ``mu`` and ``e``; needs an ``accel`` channel and ``accel_v_per_g``.
+    fix_accel : hold ``gamma_scale``'s ``s`` at the Gamma scale the run's
+        accelerometer reads (:func:`accel_calibration`), and the ``harmonic``'s ``k``,
+        ``a``, ``psi`` at its strongest harmonic when it reads one, as
+        ``fix_calibration`` holds ``mu`` and ``e``; needs an ``accel`` channel and
+        ``accel_v_per_g``.
 
     Returns
     -------
@@ -797,13 +813,13 @@ def diagnose_run(
     if retries < 0:
         raise BouncelabError(None, f"retries must be >= 0, not {retries}")
     accel, accel_notes = accel_calibration(run)
-    if fix_accel_gamma and accel is None:
+    if fix_accel and accel is None:
         raise BouncelabError(
             run.yaml_path,
-            "--fix-accel-gamma needs a readable accel channel and accel_v_per_g"
+            "--fix-accel needs a readable accel channel and accel_v_per_g"
             + (f" ({accel_notes[0]})" if accel_notes else ""),
         )
-    fixed = {"s": accel["s"]} if fix_accel_gamma else None
+    fixed = accel_fixed(accel) if fix_accel else None
     qc = None
     if flights is None:
         from bouncelab.flights import extract_run
@@ -868,9 +884,9 @@ def diagnose_run(
     # the recording's own disagreements with run.yaml: first among the warnings, and
     # apart, for the command line to print
     if accel is not None:
-        result["accel_calibration"] = {**accel, "fixed": bool(fix_accel_gamma)}
+        result["accel_calibration"] = {**accel, "fixed": bool(fix_accel)}
     # held at the reading, a fitted s cannot disagree with it
-    compared = [] if fix_accel_gamma else accel_warnings(accel, result)
+    compared = [] if fix_accel else accel_warnings(accel, result)
     result["input_warnings"] = drive_warnings(run, qc) + accel_notes + compared
     result["warnings"] = result["input_warnings"] + result["warnings"]
     return result
@@ -894,22 +910,42 @@ def accel_calibration(run) -> tuple[dict | None, list[str]]:
     scale = gamma_scale_from_accel(by_step)
     if scale is None:
         return None, [f"accelerometer: no step with Gamma >= {MIN_GAMMA_FOR_SCALE:g} to read"]
-    return {**scale, "by_step": by_step.to_dict(orient="list")}, []
+    harmonics = harmonics_from_accel(by_step)
+    return {**scale, "harmonics": harmonics, "by_step": by_step.to_dict(orient="list")}, []
+
+
+def accel_fixed(accel: dict) -> dict:
+    """The parameters ``--fix-accel`` holds: ``s`` at the accelerometer's Gamma scale and,
+    when it reads a harmonic, ``k``, ``a``, ``psi`` at the strongest one."""
+    fixed = {"s": float(accel["s"])}
+    if accel.get("harmonics"):
+        h = accel["harmonics"][0]
+        fixed |= {"k": float(h["k"]), "a": float(h["a"]), "psi": float(h["psi"])}
+    return fixed
 
 
 def accel_warnings(accel: dict | None, result: dict, tol: float = ACCEL_SCALE_TOL) -> list[str]:
-    """A warning when the accelerometer's Gamma scale (:func:`accel_calibration`) and the
-    diagnosis disagree: the fitted ``gamma_scale`` outside the accelerometer's interval
-    and more than ``tol`` (relative) from its ``s``, or no ``gamma_scale`` selected while
-    the accelerometer reads ``s`` outside [1 - tol, 1 + tol] with 1 outside its interval.
+    """Warnings where the accelerometer (:func:`accel_calibration`) and the diagnosis
+    disagree.
+
+    Gamma scale: the fitted ``gamma_scale`` outside the accelerometer's interval and more
+    than ``tol`` (relative) from its ``s``, or no ``gamma_scale`` selected while the
+    accelerometer reads ``s`` outside [1 - tol, 1 + tol] with 1 outside its interval.
+    Harmonics: a fitted harmonic of integer ``k`` (2-5) that the accelerometer does not
+    read, or reads more than :data:`ACCEL_HARMONIC_REL` off; no harmonic selected while
+    it reads one at ``a >= ACCEL_HARMONIC_WARN``.
 
     None when the diagnosis selected the shaker's armature (``feedback``): a riding body
     loads it and the plate then moves less than commanded, by a share that changes with
     Gamma (the rig: 0.4 % at Gamma 3.5 to 7 % at 0.6), which the accelerometer reads and
-    ``gamma_scale`` does not model.
+    ``gamma_scale`` does not model; the impacts ring it at the drive's harmonics too.
     """
     if accel is None or "feedback" in result.get("selected", []):
         return []
+    return _scale_warnings(accel, result, tol) + _harmonic_warnings(accel, result)
+
+
+def _scale_warnings(accel: dict, result: dict, tol: float) -> list[str]:
     s, (lo, hi) = accel["s"], accel["s_ci"]
     read = f"s = {s:.4g} [{lo:.4g}, {hi:.4g}]"
     if "gamma_scale" in result.get("selected", []):
@@ -921,6 +957,42 @@ def accel_warnings(accel: dict | None, result: dict, tol: float = ACCEL_SCALE_TO
         return [
             f"the accelerometer reads Gamma {100.0 * (s - 1.0):+.1f} % off run.yaml's "
             f"({read}), but no gamma_scale was selected"
+        ]
+    return []
+
+
+def _harmonic_warnings(accel: dict, result: dict) -> list[str]:
+    """A fitted integer harmonic the accelerometer does not read (or reads more than
+    :data:`ACCEL_HARMONIC_REL` off, outside its interval); or, with no harmonic selected,
+    one it reads at ``a`` >= :data:`ACCEL_HARMONIC_WARN`."""
+    read = {h["k"]: h for h in accel.get("harmonics") or []}
+
+    def text(h):
+        lo, hi = h["a_ci"]
+        return f"k = {h['k']}, a = {h['a']:.3g} [{lo:.3g}, {hi:.3g}], psi = {h['psi']:.3g}"
+
+    if "harmonic" in result.get("selected", []):
+        params = result["final_model"]["params"]
+        k, a = float(params["k"]), float(params["a"])
+        if k != round(k) or not 2 <= k <= 5:
+            return []  # the accelerometer's fit has the integer harmonics only
+        fitted = f"harmonic k = {k:g}, a = {a:.3g} fitted"
+        h = read.get(int(k))
+        if h is None:
+            instead = f"; it reads {text(max(read.values(), key=lambda r: r['a']))}" if read else ""
+            return [
+                f"{fitted}, but the accelerometer reads none at k = {k:g} "
+                f"(a < {MIN_HARMONIC_A:g}){instead}"
+            ]
+        lo, hi = h["a_ci"]
+        if abs(a - h["a"]) > ACCEL_HARMONIC_REL * h["a"] and not lo <= a <= hi:
+            return [f"{fitted}, but the accelerometer reads {text(h)}"]
+        return []
+    strong = [h for h in read.values() if h["a"] >= ACCEL_HARMONIC_WARN]
+    if strong:
+        return [
+            f"the accelerometer reads a harmonic of the drive ({text(strong[0])}), but no "
+            "harmonic was selected"
         ]
     return []
 

@@ -255,10 +255,18 @@ def _params_text(params: dict, ci: dict | None = None) -> str:
 
 
 def _accel_text(accel: dict | None) -> str:
-    """The accelerometer's Gamma scale for the accepted effects' caption, or ''."""
+    """The accelerometer's readings (Gamma scale, harmonics) for the accepted effects'
+    caption, or ''."""
     if not accel:
         return ""
-    return "; accelerometer: " + _params_text({"s": accel.get("s")}, {"s": accel.get("s_ci")})
+    text = "; accelerometer: " + _params_text({"s": accel.get("s")}, {"s": accel.get("s_ci")})
+    for h in accel.get("harmonics") or []:
+        text += f", harmonic k = {h['k']:g}: " + _params_text(
+            {"a": h["a"], "psi": h["psi"]}, {"a": h["a_ci"]}
+        )
+    if accel.get("fixed"):
+        text += " (held in the fits)"
+    return text
 
 
 def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str = "") -> list[dict]:

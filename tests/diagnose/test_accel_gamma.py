@@ -86,6 +86,12 @@ H2_WEAK = {"k": 2, "a": 0.012, "a_ci": [0.011, 0.013], "psi": 4.0}
         (_accel(1.0, 0.99, 1.01, [H3]), _result(["harmonic"], k=3.0, a=0.04, psi=1.0), True),
         # a half-integer k is not among the accelerometer's harmonics: nothing to compare
         (_accel(1.0, 0.99, 1.01, [H3]), _result(["harmonic"], k=2.5, a=0.1, psi=1.0), False),
+        # nor is one on the mains hum (k 2 at a 25 Hz drive)
+        (
+            _accel(1.0, 0.99, 1.01, [H3]) | {"harmonics_on_hum": [2]},
+            _result(["harmonic"], k=2.0, a=0.2, psi=1.6),
+            False,
+        ),
     ],
 )
 def test_accel_warnings(accel, result, warned):
@@ -154,3 +160,24 @@ def test_fix_accel_without_an_accelerometer_is_one_error(tmp_path):
     assert proc.returncode != 0 and not out.exists()
     (line,) = proc.stderr.strip().splitlines()
     assert line.startswith("error: ") and "sweep_g0-8" in line and "accel" in line
+
+
+def test_a_run_at_25_hz_writes_strict_json(tmp_path):
+    """At a 25 Hz drive the second harmonic falls on the 50 Hz hum: it is not read, its
+    per-step values are null in the JSON (strict: no NaN), and the clash is named."""
+    import json
+
+    from bouncelab.rig import run_rig
+
+    cfg = {
+        "kind": "sweep", "seed": 22, "drive": {"frequency_hz": 25.0},
+        "shaker": {"feedback": False},
+        "protocol": {"gammas": [1.5, 2.5], "cycles_per_step": 30},
+        "sensors": {"accel": {"enabled": True}},
+    }  # fmt: skip
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump(cfg))
+    run_rig(tmp_path / "c.yaml", tmp_path / "run", tmp_path / "truth.parquet")
+    accel, notes = accel_calibration(load_run(tmp_path / "run"))
+    assert notes == [] and accel["harmonics_on_hum"] == [2] and accel["harmonics"] == []
+    assert accel["by_step"]["a2"] == [None, None]
+    json.dumps(accel, allow_nan=False)

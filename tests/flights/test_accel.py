@@ -16,6 +16,7 @@ from bouncelab.flights.accel import (
     compare_run,
     gamma_scale_from_accel,
     harmonics_from_accel,
+    hum_clashes,
     plate_gamma_by_step,
     takeoff_phase,
 )
@@ -162,3 +163,28 @@ def test_no_accel_channel_reads_nothing(make_rig):
     cfg = {"kind": "sweep", "seed": 13, "protocol": {"gammas": [1.5, 2.5], "cycles_per_step": 20}}
     run_dir, _ = make_rig("no_accel", cfg)
     assert accel_gamma_run(load_run(run_dir)) is None
+
+
+def test_a_harmonic_on_the_mains_hum_is_not_read():
+    # at a 25 Hz drive the second harmonic is the 50 Hz hum: 0.3 g of hum would read as a
+    # plate harmonic a = 0.3 / (Gamma 2^2), so it is not read at all
+    assert hum_clashes(25.0) == {2}
+    assert hum_clashes(30.0) == set()
+    assert hum_clashes(50.0 / 3.0 + 0.2) == {3}
+    fs, f, cycles = 20_000.0, 25.0, 40
+    stated = np.array([1.0, 2.0, 3.0])
+    step_s = cycles / f
+    t = np.arange(int(stated.size * step_s * fs)) / fs
+    accel = _plate_accel_g(t, f, stated[np.minimum((t // step_s).astype(int), 2)])
+    steps = pd.DataFrame(
+        {
+            "step": [0, 1, 2],
+            "gamma": stated,
+            "t_start_s": np.arange(3) * step_s,
+            "t_end_s": (np.arange(3) + 1) * step_s,
+        }
+    )
+    table = plate_gamma_by_step(accel, fs, steps, f, settle_cycles=10)
+    assert table["a2"].isna().all() and table["a3"].notna().all()
+    assert harmonics_from_accel(table) == []
+    assert abs(gamma_scale_from_accel(table)["s"] - 1.0) < 0.005

@@ -268,6 +268,23 @@ MIN_GAMMA_FOR_SCALE = 0.5
 SCALE_BOOTSTRAP = 2000
 
 
+#: A drive harmonic closer than this to a hum frequency (Hz) cannot be told from the hum
+#: in one step's fit (a step of 1-2 s resolves about 1 Hz).
+HUM_CLASH_HZ = 1.0
+
+
+def hum_clashes(freq_hz: float, n_harmonics: int = 5, hum_hz=(50.0,)) -> set[int]:
+    """The drive harmonics ``h`` (2 .. ``n_harmonics``) within :data:`HUM_CLASH_HZ` of a
+    hum frequency: at a 25 Hz drive the second harmonic is the 50 Hz mains hum, and an
+    accelerometer's 0.3 g of hum would read as a plate harmonic."""
+    return {
+        h
+        for h in range(2, n_harmonics + 1)
+        for f in hum_hz
+        if f > 0 and abs(h * freq_hz - f) < HUM_CLASH_HZ
+    }
+
+
 def plate_gamma_by_step(
     accel_g, fs, steps, freq_hz, settle_cycles=0, time_s=None, n_harmonics=5, hum_hz=(50.0,)
 ) -> pd.DataFrame:
@@ -293,10 +310,12 @@ def plate_gamma_by_step(
     and per harmonic ``h`` = 2 .. ``n_harmonics`` of the drive, the plate position's
     harmonic in the model's terms (CONTRACTS.md section 5, ``harmonic`` with ``k = h``):
     ``a{h}`` (amplitude relative to the fundamental's, so the acceleration's ratio over
-    ``h^2``), ``a{h}_se`` and ``psi{h}`` (rad, in [0, 2 pi), against the plate phase).
+    ``h^2``), ``a{h}_se`` and ``psi{h}`` (rad, in [0, 2 pi), against the plate phase);
+    NaN for a harmonic that falls on a hum frequency (:func:`hum_clashes`).
     """
     accel_g = np.asarray(accel_g, dtype=np.float64)
     n = accel_g.shape[0]
+    clash = hum_clashes(freq_hz, n_harmonics, hum_hz)
     rows = []
     for st in steps.itertuples(index=False):
         t_from = st.t_start_s + settle_cycles / freq_hz
@@ -321,6 +340,9 @@ def plate_gamma_by_step(
             "n_samples": int(b - a),
         }
         for h in range(2, n_harmonics + 1):
+            if h in clash:
+                row[f"a{h}"] = row[f"a{h}_se"] = row[f"psi{h}"] = np.nan
+                continue
             # plate position Gamma [sin(phi) + a sin(h phi + psi)] has the acceleration
             # -Gamma [sin(phi) + a h^2 sin(h phi + psi)]; the fit's phases are of time
             # from the step's start, with phi = w t + th1 + pi
@@ -381,7 +403,7 @@ def harmonics_from_accel(
     Gamma >= ``min_gamma`` with ``a_ci`` (95 % interval of that median, steps resampled,
     seed ``k``), and ``psi`` the circular mean of the steps' phases weighted by their ``a``.
     Only harmonics with ``a >= min_a`` and above five standard errors are listed, the
-    strongest first.
+    strongest first; one on a hum frequency (NaN, :func:`hum_clashes`) never is.
     """
     use = by_step[by_step["gamma"] >= min_gamma]
     out = []
@@ -391,6 +413,8 @@ def harmonics_from_accel(
         if f"a{k}" not in use:
             break
         a = use[f"a{k}"].to_numpy(dtype=np.float64)
+        if not np.isfinite(a).all():
+            continue  # on a hum frequency: not read
         psi = use[f"psi{k}"].to_numpy(dtype=np.float64)
         median = float(np.median(a))
         if median < min_a or median < 5.0 * float(np.median(use[f"a{k}_se"])):

@@ -26,6 +26,7 @@ from bouncelab.flights.accel import (
     accel_gamma_run,
     gamma_scale_from_accel,
     harmonics_from_accel,
+    hum_clashes,
 )
 from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
 from bouncelab.gap.features import circular_mean, compare_features, wrap_angle
@@ -910,8 +911,13 @@ def accel_calibration(run) -> tuple[dict | None, list[str]]:
     scale = gamma_scale_from_accel(by_step)
     if scale is None:
         return None, [f"accelerometer: no step with Gamma >= {MIN_GAMMA_FOR_SCALE:g} to read"]
-    harmonics = harmonics_from_accel(by_step)
-    return {**scale, "harmonics": harmonics, "by_step": by_step.to_dict(orient="list")}, []
+    return {
+        **scale,
+        "harmonics": harmonics_from_accel(by_step),
+        # at these the mains hum and a plate harmonic are one frequency: not read
+        "harmonics_on_hum": sorted(hum_clashes(run.drive_frequency_hz)),
+        "by_step": _json_safe(by_step.to_dict(orient="list")),
+    }, []
 
 
 def accel_fixed(accel: dict) -> dict:
@@ -974,8 +980,8 @@ def _harmonic_warnings(accel: dict, result: dict) -> list[str]:
     if "harmonic" in result.get("selected", []):
         params = result["final_model"]["params"]
         k, a = float(params["k"]), float(params["a"])
-        if k != round(k) or not 2 <= k <= 5:
-            return []  # the accelerometer's fit has the integer harmonics only
+        if k != round(k) or not 2 <= k <= 5 or int(k) in accel.get("harmonics_on_hum", []):
+            return []  # the accelerometer reads integer harmonics only, and not on the hum
         fitted = f"harmonic k = {k:g}, a = {a:.3g} fitted"
         h = read.get(int(k))
         if h is None:

@@ -170,7 +170,12 @@ def accelerometer_figure_inputs(run_dir, flights, gamma_target: float = 3.0, win
     """
     import numpy as np
 
-    from bouncelab.flights.accel import accel_flights, compare_methods, subtract_drive
+    from bouncelab.flights.accel import (
+        accel_flights,
+        accel_gamma_run,
+        compare_methods,
+        subtract_drive,
+    )
     from bouncelab.runs import load_run, read_recording, step_table
 
     run = load_run(run_dir)
@@ -200,4 +205,5 @@ def accelerometer_figure_inputs(run_dir, flights, gamma_target: float = 3.0, win
         "summary": summary,
         "run_id": run.run_id,
         "gamma": float(step["gamma"]),
+        "gamma_by_step": accel_gamma_run(run),
     }

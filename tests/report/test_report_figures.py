@@ -14,6 +14,7 @@ import pandas as pd  # noqa: E402
 import yaml  # noqa: E402
 
 from bouncelab.figures import (
+    fig04_accelerometer,
     fig05_continuity,
     fig08_return_maps,
     fig_energy_budget,
@@ -190,3 +191,44 @@ def test_continuity_figure_without_a_contact_says_so():
         fig, data = fig05_continuity.make(t, v, flights, "r")
     assert data["contact_shown_s"] is None
     assert "no contact" in fig.axes[1].texts[0].get_text()
+
+
+def _accel_figure_inputs(gamma_by_step):
+    t = np.arange(2000) / 20_000.0
+    accel = 0.03 * np.sin(2 * np.pi * 35.0 * t)
+    return {
+        "time_s": t,
+        "accel_v": accel,
+        "residual_v": accel * 0.01,
+        "continuity_landings_s": np.array([0.02, 0.05]),
+        "comparison": pd.DataFrame({"diff_s": [-0.001, 0.0005, np.nan]}),
+        "summary": {"n_continuity": 3, "n_accel": 2, "share_found": 2 / 3,
+                    "share_false": 0.0, "median_abs_error_s": 7.5e-4, "p99_abs_error_s": 1e-3},
+        "run_id": "r",
+        "gamma": 3.0,
+        "gamma_by_step": gamma_by_step,
+    }  # fmt: skip
+
+
+def test_accelerometer_figure_shows_the_gamma_it_reads_when_it_can():
+    by_step = pd.DataFrame(
+        {
+            "step": [0, 1, 2],
+            "gamma": [1.0, 2.0, 3.0],
+            "gamma_accel": [0.93, 1.862, 2.79],
+            "gamma_accel_se": [0.004, 0.004, 0.004],
+            "n_samples": [20000] * 3,
+            "a3": [0.08, 0.0801, 0.0799],
+            "a3_se": [0.001] * 3,
+            "psi3": [1.0, 1.01, 0.99],
+        }
+    )
+    with house_style():
+        fig, data = fig04_accelerometer.make(**_accel_figure_inputs(by_step))
+    assert len(fig.axes) == 4
+    assert abs(data["gamma_scale"]["s"] - 0.93) < 1e-9  # the median of 0.93, 0.931, 0.93
+    assert [h["k"] for h in data["harmonics"]] == [3]
+    assert "0.93 x the stated" in data["summary"] and "k = 3" in data["summary"]
+    with house_style():
+        fig, data = fig04_accelerometer.make(**_accel_figure_inputs(None))
+    assert len(fig.axes) == 3 and "gamma_scale" not in data

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from bouncelab.figures.style import DATA_COLOR, MODEL_COLOR, new_figure
+from bouncelab.figures.style import DATA_COLOR, MODEL_COLOR
+from bouncelab.flights.accel import gamma_scale_from_accel, harmonics_from_accel
 
 
 def make(
@@ -20,6 +22,7 @@ def make(
     run_id: str,
     gamma: float | None = None,
     k_sigma: float = 6.0,
+    gamma_by_step: pd.DataFrame | None = None,
 ):
     """Raw signal, residual after the drive fit, and the method's timing errors.
 
@@ -30,10 +33,22 @@ def make(
     continuity_landings_s : landings found by the continuity method in the stretch (s).
     comparison, summary : from :func:`bouncelab.flights.accel.compare_methods` over the
         whole run (``diff_s`` per matched flight; shares and error percentiles).
+    gamma_by_step : optional, the plate's Gamma the accelerometer reads per step
+        (:func:`bouncelab.flights.accel.plate_gamma_by_step`; None without
+        ``accel_v_per_g``): drawn beside the histogram as read over stated Gamma, with the
+        Gamma scale of :func:`bouncelab.flights.accel.gamma_scale_from_accel`.
     Data: the summary numbers (share of continuity flights found, false share, median
-    and 99th percentile absolute timing error in ms).
+    and 99th percentile absolute timing error in ms), and the Gamma scale with the
+    harmonics read (:func:`bouncelab.flights.accel.harmonics_from_accel`) when given.
     """
-    fig, axes = new_figure(3, 1, width_in=7.0, height_in=6.4)
+    scale = gamma_scale_from_accel(gamma_by_step) if gamma_by_step is not None else None
+    fig = plt.figure(figsize=(7.0, 6.4))
+    if scale is not None:
+        layout = [["signal", "signal"], ["residual", "residual"], ["hist", "gamma"]]
+        mosaic = fig.subplot_mosaic(layout, width_ratios=[3, 2])
+    else:
+        mosaic = fig.subplot_mosaic([["signal"], ["residual"], ["hist"]])
+    axes = [mosaic["signal"], mosaic["residual"], mosaic["hist"]]
     ms = (time_s - time_s[0]) * 1e3
     axes[0].plot(ms, accel_v, color=DATA_COLOR, lw=0.5, label="accelerometer")
     axes[0].plot(ms, accel_v - residual_v, color=MODEL_COLOR, lw=0.8, label="fitted drive")
@@ -57,6 +72,8 @@ def make(
         axes[2].hist(np.clip(diff_ms, -lim, lim), bins=60, color=DATA_COLOR, alpha=0.8)
     axes[2].set_xlabel("accelerometer - continuity flight time (ms)")
     axes[2].set_ylabel("flights")
+    if scale is not None:
+        _draw_gamma(mosaic["gamma"], gamma_by_step, scale)
     fig.tight_layout()
     med = summary.get("median_abs_error_s")
     p99 = summary.get("p99_abs_error_s")
@@ -79,4 +96,33 @@ def make(
         )
     else:
         data["summary"] = "the accelerometer method matched no flight."
+    if scale is not None:
+        data["gamma_scale"] = scale
+        data["harmonics"] = harmonics_from_accel(gamma_by_step)
+        data["summary"] += (
+            f" The plate's Gamma it reads is {scale['s']:.4g} x the stated "
+            f"[{scale['s_ci'][0]:.4g}, {scale['s_ci'][1]:.4g}] over {scale['n_steps']} steps"
+            + "".join(
+                f"; harmonic k = {h['k']}: a = {h['a']:.3g}, psi = {h['psi']:.3g}"
+                for h in data["harmonics"]
+            )
+            + "."
+        )
     return fig, data
+
+
+def _draw_gamma(ax, by_step: pd.DataFrame, scale: dict) -> None:
+    """Read over stated Gamma per step (error bars: two standard errors), and the Gamma
+    ``scale`` with its interval."""
+    use = by_step[by_step["gamma"] > 0]
+    ratio = use["gamma_accel"] / use["gamma"]
+    ax.errorbar(
+        use["gamma"], ratio, yerr=2.0 * use["gamma_accel_se"] / use["gamma"], fmt="o",
+        ms=3, color=DATA_COLOR, lw=0.8,
+    )  # fmt: skip
+    ax.axhspan(*scale["s_ci"], color=MODEL_COLOR, alpha=0.15, lw=0)
+    ax.axhline(scale["s"], color=MODEL_COLOR, lw=0.8, label=f"s = {scale['s']:.4g}")
+    ax.axhline(1.0, color="0.5", ls=":", lw=0.7)
+    ax.set_xlabel(r"stated $\Gamma$")
+    ax.set_ylabel(r"read / stated $\Gamma$")
+    ax.legend(loc="best", fontsize=7)

@@ -411,7 +411,7 @@ def harmonics_from_accel(
         return out
     for k in range(2, 10):
         if f"a{k}" not in use:
-            break
+            continue
         a = use[f"a{k}"].to_numpy(dtype=np.float64)
         if not np.isfinite(a).all():
             continue  # on a hum frequency: not read

@@ -134,6 +134,19 @@ def test_diagnosis_text_shows_the_verdict_margin_and_the_run_level_warnings(tmp_
     assert run_warning in listed and step_warning not in listed
 
 
+def _explained_diagnosis(**keys) -> dict:
+    """A diagnosis JSON explained by nothing selected, with ``keys`` replaced or added."""
+    base = {
+        "baseline": {"model": "ideal", "gap": 3.2},
+        "noise_floor": 0.5,
+        "final_gap": 0.4,
+        "unexplained": False,
+        "steps": [],
+        "warnings": [],
+    }
+    return base | keys
+
+
 def test_diagnosis_text_says_whether_the_seeds_agree(tmp_path):
     """With ``seed_check`` (``--check-seeds``) the verdict's text says how many seeds were
     run and whether they agree; without it, nothing is said."""
@@ -143,14 +156,7 @@ def test_diagnosis_text_says_whether_the_seeds_agree(tmp_path):
 
     run = tmp_path / "runs" / "r"
     run.mkdir(parents=True)
-    diag = {
-        "baseline": {"model": "ideal", "gap": 3.2},
-        "noise_floor": 0.5,
-        "final_gap": 0.4,
-        "unexplained": False,
-        "steps": [],
-        "warnings": [],
-    }
+    diag = _explained_diagnosis()
 
     def verdict_text(d):
         (run / "diagnosis.json").write_text(json.dumps(d))
@@ -181,15 +187,11 @@ def test_accepted_effects_caption_shows_the_accelerometer_beside_the_drop_test(t
 
     run = tmp_path / "runs" / "r"
     run.mkdir(parents=True)
-    diag = {
-        "baseline": {"model": "ideal", "gap": 3.2},
-        "noise_floor": 0.5,
-        "final_gap": 0.4,
-        "unexplained": False,
-        "steps": [{"effect": "gamma_scale", "model": "gamma_scale", "params": {"s": 0.931},
-                   "gap": 0.4, "shrink": 0.8, "warnings": []}],
-        "accel_calibration": {"s": 0.9272, "s_ci": [0.9227, 0.9321], "n_steps": 5},
-    }  # fmt: skip
+    diag = _explained_diagnosis(
+        steps=[{"effect": "gamma_scale", "model": "gamma_scale", "params": {"s": 0.931},
+                "gap": 0.4, "shrink": 0.8, "warnings": []}],
+        accel_calibration={"s": 0.9272, "s_ci": [0.9227, 0.9321], "n_steps": 5},
+    )  # fmt: skip
     (run / "diagnosis.json").write_text(json.dumps(diag))
 
     def caption():

@@ -894,10 +894,11 @@ def diagnose_run(
 
 
 def accel_calibration(run) -> tuple[dict | None, list[str]]:
-    """The Gamma scale an accelerometer on the plate reads
-    (:func:`bouncelab.flights.accel.gamma_scale_from_accel`), shown beside a fitted
-    ``gamma_scale`` as a drop test's mu and e are beside the fitted ones; ``(None, [])``
-    for a run without an ``accel`` channel and its ``accel_v_per_g``.
+    """The Gamma scale and the drive's harmonics an accelerometer on the plate reads
+    (:func:`bouncelab.flights.accel.gamma_scale_from_accel`,
+    :func:`bouncelab.flights.accel.harmonics_from_accel`), shown beside a fitted
+    ``gamma_scale`` and ``harmonic`` as a drop test's mu and e are beside the fitted ones;
+    ``(None, [])`` for a run without an ``accel`` channel and its ``accel_v_per_g``.
 
     A channel that cannot be read does not stop the diagnosis, which reads the flights:
     ``(None, [the reason])``.

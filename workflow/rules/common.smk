@@ -37,6 +37,8 @@ BAD_NAMES = sorted(
 SWEEPS = [r for r, m in RUNS.items() if m.get("kind") == "sweep"]
 DROPS = [r for r, m in RUNS.items() if m.get("kind") == "drop"]
 ACCEL_RUNS = [r for r, m in RUNS.items() if "accel" in (m.get("channels") or {})]
+# an accelerometer in g: what `diagnosis: fix_accel` needs (bouncelab diagnose --fix-accel)
+ACCEL_G_RUNS = [r for r in ACCEL_RUNS if RUNS[r].get("accel_v_per_g")]
 VARIANTS = list(config["variants"])
 
 

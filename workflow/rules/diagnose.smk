@@ -34,11 +34,16 @@ rule diagnose:
         seed=config["diagnosis"]["seed"],
         check_seeds=config["diagnosis"]["check_seeds"],
         retries=config["diagnosis"]["retries"],
+        fix_accel=lambda wc: (
+            "--fix-accel"
+            if config["diagnosis"]["fix_accel"] and wc.run in ACCEL_G_RUNS
+            else ""
+        ),
     shell:
         "bouncelab diagnose {params.run_dir:q} --flights {input.flights:q} "
         "{params.calibration} --baseline {params.baseline} --seed {params.seed} "
-        "--check-seeds {params.check_seeds} --retries {params.retries} --workers {threads} "
-        "-o {output:q} > {log:q} 2>&1"
+        "--check-seeds {params.check_seeds} --retries {params.retries} {params.fix_accel} "
+        "--workers {threads} -o {output:q} > {log:q} 2>&1"
 
 
 rule blind_validation:

@@ -22,7 +22,6 @@ With ``--only`` the named cases are run again and merged into the record's other
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import platform
 import tempfile
@@ -31,31 +30,34 @@ from pathlib import Path
 
 import yaml
 
+from bouncelab.gap.blind import deep_merge, load_cases
 from bouncelab.gap.diagnose import ACCEL_HARMONIC_REL, ACCEL_SCALE_TOL, diagnose_run
 from bouncelab.rig import run_rig
+from bouncelab.yamlfile import read_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results" / "accel_warnings.json"
+BLIND_CASES = ROOT / "config" / "blind" / "cases.yaml"
 SINGLE = ("null", "friction", "restitution", "harmonic", "gamma_scale")
 #: Case names of one library effect or none (the validation's ``g_`` and ``w_`` too).
 PREFIXES = SINGLE + tuple(p + s for p in ("g_", "w_") for s in SINGLE)
 
 
 def cases() -> dict[str, dict]:
-    """The blind single-effect and null cases (rigid shaker), each with an accelerometer."""
-    spec = yaml.safe_load((ROOT / "config" / "blind" / "cases.yaml").read_text())
+    """The blind single-effect and null cases (rigid shaker) and :data:`HARD`, each with
+    an accelerometer."""
+    accel = {"sensors": {"accel": {"enabled": True}}}
     out = {}
-    for case in spec["cases"]:
-        name = case["name"]
-        if not name.startswith(PREFIXES):
+    for case in load_cases(BLIND_CASES):
+        cfg = case["rig"]
+        if not case["name"].startswith(PREFIXES):
             continue
-        cfg = _merged(spec["base"], case["rig"])
         if cfg.get("shaker", {}).get("feedback") or cfg.get("effects"):
             continue
-        cfg.setdefault("sensors", {})["accel"] = {"enabled": True}
-        out[name] = cfg
+        out[case["name"]] = deep_merge(cfg, accel)
+    base = read_yaml(BLIND_CASES, "blind case file").get("base") or {}
     for name, over in HARD.items():
-        out[name] = _merged(spec["base"], over | {"sensors": {"accel": {"enabled": True}}})
+        out[name] = deep_merge(deep_merge(base, over), accel)
     return out
 
 
@@ -82,13 +84,6 @@ HARD = {
         "protocol": {"gammas": [1.2, 1.6, 2.0, 2.4, 2.8, 3.2], "cycles_per_step": 30},
     },
 }  # fmt: skip
-
-
-def _merged(base: dict, over: dict) -> dict:
-    out = copy.deepcopy(base)
-    for k, v in over.items():
-        out[k] = _merged(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
 
 
 def plate_right(cfg: dict, result: dict) -> tuple[bool, str]:

@@ -205,5 +205,5 @@ def accelerometer_figure_inputs(run_dir, flights, gamma_target: float = 3.0, win
         "summary": summary,
         "run_id": run.run_id,
         "gamma": float(step["gamma"]),
-        "gamma_by_step": accel_gamma_run(run),
+        "gamma_by_step": accel_gamma_run(run, rec),  # the recording read once
     }

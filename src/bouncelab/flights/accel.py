@@ -427,15 +427,16 @@ def harmonics_from_accel(
     return sorted(out, key=lambda h: -h["a"])
 
 
-def accel_gamma_run(run) -> pd.DataFrame | None:
+def accel_gamma_run(run, recording=None) -> pd.DataFrame | None:
     """:func:`plate_gamma_by_step` of a sweep run (:class:`bouncelab.runs.Run`) with an
     ``accel`` channel and its ``accel_v_per_g``; None without either (volts alone do not
-    say what a g is)."""
+    say what a g is). ``recording``: the run's recording with its ``accel`` channel
+    already read (:func:`bouncelab.runs.read_recording`), else it is read here."""
     from bouncelab.runs import read_recording, step_table
 
     if run.kind != "sweep" or "accel" not in run.channels or not run.accel_v_per_g:
         return None
-    rec = read_recording(run, roles=("accel",))
+    rec = recording if recording is not None else read_recording(run, roles=("accel",))
     steps = step_table(run, rec.duration_s)
     accel_g = np.asarray(rec.channels["accel"], dtype=np.float64) / float(run.accel_v_per_g)
     return plate_gamma_by_step(

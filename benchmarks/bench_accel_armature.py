@@ -1,235 +1,223 @@
-"""Experiment: how well a plate accelerometer measures the shaker's armature.
+"""How well a plate accelerometer reads the shaker's armature (its ring-down after the
+impacts), against the virtual rig's own armature.
 
-Not part of the package and not used by ``bouncelab diagnose``: a measurement of
-whether the information the flight times lack (docs/diagnosis.md, section 5: the
-armature's damping ratio of the seed-like cases is 25-180 % off) is in an ``accel``
-channel, and at what cost. The virtual rig makes a run from ``--rig-config`` (with
-``sensors.accel.enabled``), the continuity flights are extracted as usual, and the
-armature is identified from the accelerometer alone; the errors against the rig's
-ground truth and the time are printed and written to
-``benchmarks/results/accel_armature_<config name>.json``.
+:func:`bouncelab.flights.armature.armature_from_accel` is what ``bouncelab diagnose``
+shows beside a fitted ``feedback`` (JSON ``accel_calibration.armature``), warns from, and
+holds with ``--fix-accel``. Runs: the blind validation's cases with the armature
+(``config/blind/cases.yaml``: feedback alone above and below its resonance, the seed-like
+combinations) and its rigid-shaker cases (the nulls and single effects with the four
+harder runs of ``bench_accel_warnings.py``, random plate vibration, a sensor delay),
+each made again with an accelerometer (the rig's default
+sensor: 10 mV/g, 0.5 g rms noise, 0.3 g hum, a 3 kHz mounting ring); the configs of
+``benchmarks/configs/accel_*.yaml``; and the shipped ``config/rig/accel_g2-4.yaml``.
+Reference: the rig's ``f_ratio`` (its derived number) and ``damping_ratio``, read only
+here, after the reading.
 
-Method, per Gamma step with Gamma > 1: the accelerometer (m/s^2, ``accel_v_per_g``) is
-low-passed at ``LOWPASS_DRIVES`` drive frequencies (zero phase), decimated, and fitted by
-least squares with
+Goals: on a rigid shaker no armature read; where one is read, ``f_ratio`` within 2 % and
+``zeta`` within 15 %. A true armature that is not read is counted, not a miss of the
+goals: one rung in step with the drive looks like the drive's harmonics (the module's
+docstring).
 
-- the drive (constant, 5 harmonics) and 50 Hz hum;
-- the armature's free response from the step's start (2 columns);
-- per continuity landing: the armature's acceleration after a velocity kick (free
-  amplitude) and the low-passed impact spike (free amplitude: the rig samples the
-  acceleration at an instant, so a 40 us impact spike is caught or missed by luck, as
-  an accelerometer without an anti-alias filter would; tying it to the kick biased
-  everything);
-- the riding body's load ``-(g + a_plate)`` during contacts through the oscillator
-  (coefficient: the mass ratio), and ``g sign(v_plate)`` for the pole's friction.
+``--diagnose NAME ...`` also diagnoses those runs (``diagnose_run``, seed 0, 2 workers)
+with ``--fix-accel``, which holds ``f_ratio`` and ``zeta`` at the reading, and scores the
+selection and every parameter against the rig (``gap.blind.score_case``) beside the blind
+validation's record of the same case (``blind_validation.json``): the accelerometer
+leaves the continuity recording as it is (the rig draws its noise apart), so the record
+is this recording diagnosed without the reading.
 
-The armature is ``M y'' + c y' + k y = -F`` (plate = command + y), so the kernels are a
-damped oscillator's; the mean square residual is profiled over ``f_n`` (coarse grid)
-and then over ``(f_n, zeta)`` by Nelder-Mead, twice (the second time with the fitted
-armature motion in the load's ``a_plate``: a riding body adds its mass).
+    python benchmarks/bench_accel_armature.py [--only NAME ...] [--diagnose NAME ...]
 
-Run: ``python benchmarks/bench_accel_armature.py --rig-config CONFIG``.
+Prints and writes ``benchmarks/results/accel_armature.json`` (``--only`` merges the named
+runs into the record's others).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-from scipy.optimize import minimize
-from scipy.signal import bilinear, butter, lfilter, sosfiltfilt
+import yaml
 
 from bouncelab.flights import extract_run
-from bouncelab.flights.accel import drive_basis
+from bouncelab.flights.armature import armature_from_accel
+from bouncelab.gap.blind import deep_merge, load_cases, score_case
+from bouncelab.gap.diagnose import diagnose_run
 from bouncelab.rig import read_truth, run_rig
-from bouncelab.runs import load_run, read_recording, step_table
+from bouncelab.runs import load_run
+from bouncelab.yamlfile import read_yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_accel_warnings import cases as accel_warning_cases  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-G_M_S2 = 9.80665
-LOWPASS_DRIVES = 6.0  # low-pass corner in drive frequencies
-SAMPLES_PER_CORNER = 3.0  # decimated samples per corner period
-N_HARMONICS = 5
-HUM_HZ = 50.0
-F_RATIO_GRID = np.exp(np.linspace(math.log(0.2), math.log(3.0), 17))
-ZETA_START = 0.05
+RESULTS = ROOT / "benchmarks" / "results" / "accel_armature.json"
+F_RATIO_GOAL, ZETA_GOAL = 0.02, 0.15
+ARMATURE_CASES = (
+    "feedback_a", "feedback_b", "feedback_c", "g_feedback",
+    "seed_like", "seed_like_b", "seed_like_c", "g_seed_like",
+)  # fmt: skip
+#: Rigid-shaker cases outside the library, beside ``bench_accel_warnings.cases()`` (the
+#: blind single-effect and null cases, and four harder runs).
+OUTSIDE_CASES = ("ool_vibration", "ool_vibration_b", "ool_delay")
 
 
-def segments(accel, fs, steps, flights, drive_hz):
-    """Per Gamma step (> 1, two landings or more): decimated time from the step's start
-    (s), low-passed acceleration (m/s^2), landings (s from the step's start), contact
-    mask; and the low-pass's response to a unit-area spike (1/s) with its lag grid (s)."""
-    fc = min(LOWPASS_DRIVES * drive_hz, 0.2 * fs)
-    sos = butter(4, fc, fs=fs, output="sos")
-    af = sosfiltfilt(sos, np.asarray(accel, dtype=np.float64))
-    q = max(1, int(fs // (SAMPLES_PER_CORNER * fc)))
-    t_all = np.arange(af.size) / fs
-    half = int(math.ceil(4.0 / fc * fs))
-    unit = np.zeros(2 * half + 1)
-    unit[half] = fs
-    spike = sosfiltfilt(sos, unit)
-    lag = (np.arange(spike.size) - half) / fs
-    land_all = np.sort(flights["t_landing_s"].to_numpy(dtype=np.float64))
-    take_all = np.sort(flights["t_takeoff_s"].to_numpy(dtype=np.float64))
-    out = []
-    for st in steps.itertuples(index=False):
-        if st.gamma <= 1.0:
-            continue
-        i0, i1 = np.searchsorted(t_all, [st.t_start_s, st.t_end_s])
-        idx = np.arange(i0, i1, q)
-        land = land_all[(land_all >= st.t_start_s) & (land_all < st.t_end_s)]
-        if idx.size < 64 or land.size < 2:
-            continue
-        nxt = np.minimum(np.searchsorted(take_all, land), take_all.size - 1)
-        take = np.where(take_all[nxt] > land, take_all[nxt], st.t_end_s)
-        t = t_all[idx]
-        edges = np.zeros(t.size + 1, dtype=np.int64)
-        np.add.at(edges, np.searchsorted(t, land), 1)
-        np.add.at(edges, np.searchsorted(t, take), -1)
-        out.append((t - t[0], af[idx], land - t[0], np.cumsum(edges)[: t.size] > 0))
-    return out, spike, lag
+def configs() -> dict[str, dict]:
+    """Every run's rig config, with the accelerometer on."""
+    accel = {"sensors": {"accel": {"enabled": True}}}
+    blind = {c["name"]: c["rig"] for c in load_cases(ROOT / "config" / "blind" / "cases.yaml")}
+    out = {name: deep_merge(blind[name], accel) for name in ARMATURE_CASES + OUTSIDE_CASES}
+    out |= accel_warning_cases()
+    paths = sorted((ROOT / "benchmarks" / "configs").glob("accel_*.yaml"))
+    for path in [*paths, ROOT / "config" / "rig" / "accel_g2-4.yaml"]:
+        out[path.stem] = read_yaml(path, "rig config")
+    return out
 
 
-def drive_columns(t, drive_hz):
-    return drive_basis(t, drive_hz, N_HARMONICS, (HUM_HZ,))
-
-
-def design(seg, drive_hz, fn_hz, zeta, spike, lag, a_arm=None):
-    """Design matrix of one step and the index of the load column."""
-    t, a, land, contact = seg
-    drive = drive_columns(t, drive_hz)
-    wn = 2.0 * math.pi * fn_hz
-    al = zeta * wn
-    wd = wn * math.sqrt(max(1.0 - zeta * zeta, 1e-12))
-    free = np.stack([np.exp(-al * t) * np.cos(wd * t), np.exp(-al * t) * np.sin(wd * t)], axis=1)
-    tau = t[:, None] - land[None, :]
-    tp = np.maximum(tau, 0.0)
-    e = np.exp(-al * tp)
-    s, c = np.sin(wd * tp), np.cos(wd * tp)
-    kicks = np.where(tau >= 0.0, -wn * wn * e * s / wd - 2.0 * al * e * (c - al / wd * s), 0.0)
-    spikes = np.interp(tau, lag, spike, left=0.0, right=0.0)
-    coef, *_ = np.linalg.lstsq(drive, a, rcond=None)
-    a_plate = drive[:, 1:] @ coef[1:] + (0.0 if a_arm is None else a_arm)
-    w = 2.0 * math.pi * drive_hz
-    v_plate = sum(
-        (-coef[2 * h - 1] * np.cos(h * w * t) + coef[2 * h] * np.sin(h * w * t)) / (h * w)
-        for h in range(1, N_HARMONICS + 1)
+def measure(name: str, cfg: dict, tmp: Path, diagnose: bool = False) -> dict:
+    """One run made, extracted and read; the reading scored against the rig's armature;
+    with ``diagnose``, the run diagnosed with the reading held and scored too."""
+    (tmp / f"{name}.yaml").write_text(yaml.safe_dump(cfg))
+    run_rig(tmp / f"{name}.yaml", tmp / name, tmp / f"{name}.parquet")
+    flights, _qc = extract_run(tmp / name)
+    t0 = time.perf_counter()
+    reading = armature_from_accel(load_run(tmp / name), flights)
+    seconds = time.perf_counter() - t0
+    _f, truth = read_truth(tmp / f"{name}.parquet")  # only now
+    shaker = truth["config"]["shaker"]
+    true = (
+        {"f_ratio": truth["derived"]["f_ratio"], "zeta": shaker["damping_ratio"]}
+        if shaker["feedback"]
+        else None
     )
-    b, aa = bilinear([-1.0, 0.0, 0.0], [1.0, 2.0 * al, wn * wn], 1.0 / (t[1] - t[0]))
-    load = lfilter(b, aa, np.where(contact, G_M_S2 + a_plate, 0.0))
-    pole = lfilter(b, aa, np.where(contact, G_M_S2 * np.sign(v_plate), 0.0))
-    X = np.concatenate([drive, free, kicks, spikes, load[:, None], pole[:, None]], axis=1)
-    return X, X.shape[1] - 2, drive.shape[1]
-
-
-def fit_all(segs, drive_hz, fn_hz, zeta, spike, lag, arms=None):
-    """Mean square residual ((m/s^2)^2), the load coefficient (weighted over steps), and
-    each step's fitted armature acceleration."""
-    sq = n = 0.0
-    num = den = 0.0
-    fitted = []
-    for i, seg in enumerate(segs):
-        X, j, nd = design(seg, drive_hz, fn_hz, zeta, spike, lag, None if arms is None else arms[i])
-        coef, *_ = np.linalg.lstsq(X, seg[1], rcond=None)
-        r = seg[1] - X @ coef
-        sq += float(r @ r)
-        n += r.size
-        wj = float(X[:, j] @ X[:, j])
-        num += coef[j] * wj
-        den += wj
-        fitted.append(X[:, nd:] @ coef[nd:])
-    return sq / max(n, 1.0), num / max(den, 1e-300), fitted
-
-
-def rigid_ms(segs, drive_hz):
-    sq = n = 0.0
-    for t, a, _land, _c in segs:
-        X = drive_columns(t, drive_hz)
-        coef, *_ = np.linalg.lstsq(X, a, rcond=None)
-        r = a - X @ coef
-        sq += float(r @ r)
-        n += r.size
-    return sq / max(n, 1.0)
-
-
-def identify(segs, drive_hz, spike, lag):
-    """f_ratio, zeta, mass_ratio and the residual rms (m/s^2); evaluations counted."""
-    coarse = [
-        fit_all(segs, drive_hz, r * drive_hz, ZETA_START, spike, lag)[0] for r in F_RATIO_GRID
-    ]
-    x = np.array([math.log(F_RATIO_GRID[int(np.argmin(coarse))]), math.log(ZETA_START)])
-    arms, n_evals = None, len(coarse)
-    for _ in range(2):
-
-        def objective(z, arms=arms):
-            r, zeta = math.exp(z[0]), math.exp(z[1])
-            if not (0.05 <= r <= 5.0 and 0.002 <= zeta <= 0.9):
-                return 1e30
-            return fit_all(segs, drive_hz, r * drive_hz, zeta, spike, lag, arms)[0]
-
-        res = minimize(objective, x, method="Nelder-Mead",
-                       options={"xatol": 3e-3, "fatol": 1e-9, "maxfev": 50})  # fmt: skip
-        x, n_evals = res.x, n_evals + res.nfev
-        ms, ratio, arms = fit_all(segs, drive_hz, math.exp(x[0]) * drive_hz, math.exp(x[1]),
-                                  spike, lag, arms)  # fmt: skip
-    return {
-        "f_ratio": math.exp(x[0]),
-        "zeta": math.exp(x[1]),
-        "mass_ratio": float(ratio),
-        "rms_m_s2": math.sqrt(ms),
-        "rigid_rms_m_s2": math.sqrt(rigid_ms(segs, drive_hz)),
-        "n_evals": n_evals,
+    read = bool(reading and reading["read"])
+    errors = {k: abs(reading[k] - v) / v for k, v in true.items()} if (true and read) else None
+    if true is None:
+        met = not read
+    else:
+        met = (not read) or (errors["f_ratio"] <= F_RATIO_GOAL and errors["zeta"] <= ZETA_GOAL)
+    out = {
+        "armature": true is not None,
+        "true": true,
+        "reading": reading,
+        "rel_errors": errors,
+        "meets_goals": met,
+        "read_s": round(seconds, 2),
     }
+    if diagnose:
+        t0 = time.perf_counter()
+        result = diagnose_run(tmp / name, fix_accel=True, workers=2)
+        scored = score_case(result, truth)
+        out["diagnosis_fix_accel"] = {
+            "fixed": result["design"]["fixed"],
+            "selected": scored["selected"],
+            "set_right": scored["set_right"],
+            "unexplained": scored["unexplained"],
+            "param_errors": scored["param_errors"],
+            "input_warnings": result["input_warnings"],
+            "diagnose_s": round(time.perf_counter() - t0, 1),
+        }
+        blind = json.loads((RESULTS.parent / "blind_validation.json").read_text())["cases"]
+        if name in blind:
+            keys = ("selected", "set_right", "unexplained", "param_errors")
+            out["blind_record"] = {k: blind[name][k] for k in keys}
+    return out
+
+
+def _rounded(errors: dict | None) -> dict | None:
+    if errors is None:
+        return None
+    return {f"{e}.{p}": round(v, 3) for e, ps in errors.items() for p, v in ps.items()}
+
+
+def summary(runs: dict) -> dict:
+    arm = [r for r in runs.values() if r["armature"]]
+    rigid = [r for r in runs.values() if not r["armature"]]
+    read = [r for r in arm if r["rel_errors"]]
+    return {
+        "armature_runs": len(arm),
+        "armature_read": len(read),
+        "armature_read_within_goals": sum(r["meets_goals"] for r in read),
+        "rigid_runs": len(rigid),
+        "rigid_read": sum(bool(r["reading"] and r["reading"]["read"]) for r in rigid),
+        "max_f_ratio_error": max((r["rel_errors"]["f_ratio"] for r in read), default=None),
+        "max_zeta_error": max((r["rel_errors"]["zeta"] for r in read), default=None),
+        "max_rigid_rms_ratio": max(
+            (r["reading"]["rms_ratio"] for r in rigid if r["reading"]), default=None
+        ),
+        "min_read_rms_ratio": min((r["reading"]["rms_ratio"] for r in read), default=None),
+        "max_read_s": max(r["read_s"] for r in runs.values()),
+        "meets_goals": all(r["meets_goals"] for r in runs.values()),
+        "diagnosed_fix_accel": {
+            name: {
+                "set_right": r["diagnosis_fix_accel"]["set_right"],
+                "params_within_15pct": _within(r["diagnosis_fix_accel"]["param_errors"]),
+                "blind_record_within_15pct": _within(
+                    (r.get("blind_record") or {}).get("param_errors")
+                ),
+            }
+            for name, r in runs.items()
+            if "diagnosis_fix_accel" in r
+        },
+    }
+
+
+def _within(errors: dict | None, tol: float = 0.15) -> list[int] | None:
+    """``[within tol, scored]`` over every parameter of ``errors``."""
+    if errors is None:
+        return None
+    values = [v for ps in errors.values() for v in ps.values()]
+    return [sum(v <= tol for v in values), len(values)]
 
 
 def main() -> None:
     p = argparse.ArgumentParser()
-    p.add_argument("--rig-config", required=True, help="rig config with sensors.accel enabled")
+    p.add_argument("--only", nargs="*", default=None, help="run only these, merged into the record")
+    p.add_argument("--diagnose", nargs="*", default=[], help="diagnose these with --fix-accel too")
     args = p.parse_args()
+    cfgs = configs()
+    names = args.only or list(cfgs)
+    unknown = sorted(set(names) - set(cfgs)) + sorted(set(args.diagnose) - set(names))
+    if unknown:
+        raise SystemExit(f"error: unknown runs {unknown}; known: {sorted(cfgs)}")
+    runs = json.loads(RESULTS.read_text())["runs"] if args.only and RESULTS.exists() else {}
     with tempfile.TemporaryDirectory() as tmp:
-        run_dir = Path(tmp) / Path(args.rig_config).stem
-        run_rig(args.rig_config, run_dir, Path(tmp) / "truth.parquet")
-        run = load_run(run_dir)
-        if "accel" not in run.channels:
-            raise SystemExit(f"{args.rig_config}: the run has no accel channel")
-        rec = read_recording(run, roles=("accel",))
-        flights, _qc = extract_run(run_dir)
-        f = float(run.drive_frequency_hz)
-        t0 = time.perf_counter()
-        accel = rec.channels["accel"].astype(np.float64) / float(run.accel_v_per_g) * G_M_S2
-        segs, spike, lag = segments(accel, rec.fs, step_table(run, rec.duration_s), flights, f)
-        est = identify(segs, f, spike, lag)
-        total_s = time.perf_counter() - t0
-        _f, truth = read_truth(Path(tmp) / "truth.parquet")
-    shaker, derived = truth["config"]["shaker"], truth["derived"]
-    true = {
-        "f_ratio": derived["f_ratio"],
-        "zeta": shaker["damping_ratio"],
-        "mass_ratio": derived["mass_ratio"],
-    }
+        for name in names:
+            r = runs[name] = measure(name, cfgs[name], Path(tmp), name in args.diagnose)
+            reading = r["reading"] or {}
+            errors = r["rel_errors"] or {}
+            print(
+                f"{name:24s} armature {'yes' if r['armature'] else 'no ':3s}  "
+                f"read {'yes' if reading.get('read') else 'no ':3s}  "
+                f"rms ratio {reading.get('rms_ratio', float('nan')):5.2f}  "
+                f"f_ratio {reading.get('f_ratio', float('nan')):.4f} "
+                f"({100 * errors.get('f_ratio', float('nan')):4.1f} %)  "
+                f"zeta {reading.get('zeta', float('nan')):.4f} "
+                f"({100 * errors.get('zeta', float('nan')):4.1f} %)  {r['read_s']:5.1f} s",
+                flush=True,
+            )
+            if "diagnosis_fix_accel" in r:
+                d, rec = r["diagnosis_fix_accel"], r.get("blind_record") or {}
+                print(f"    --fix-accel: {d['selected']}, set right {d['set_right']}, "
+                      f"errors {_rounded(d['param_errors'])}; without the reading (blind "
+                      f"record): {rec.get('selected')}, {_rounded(rec.get('param_errors'))}",
+                      flush=True)  # fmt: skip
     out = {
-        "config": str(Path(args.rig_config).name),
-        "feedback": bool(shaker["feedback"]),
-        "n_steps": len(segs),
-        "estimate": est,
-        "truth": true if shaker["feedback"] else None,
-        "rel_errors": {k: abs(est[k] - v) / v for k, v in true.items()}
-        if shaker["feedback"]
-        else None,
-        "identify_s": round(total_s, 2),
+        "summary": summary(runs),
+        "goals": {"f_ratio_rel": F_RATIO_GOAL, "zeta_rel": ZETA_GOAL, "rigid_read": 0},
+        "runs": dict(sorted(runs.items())),
         "cpu_count": os.cpu_count(),
         "python": platform.python_version(),
         "machine": platform.machine(),
     }
-    print(json.dumps(out, indent=1))
-    path = ROOT / "benchmarks" / "results" / f"accel_armature_{Path(args.rig_config).stem}.json"
-    path.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+    print(json.dumps(out["summary"], indent=1))
+    RESULTS.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+    print(f"-> {RESULTS}")
 
 
 if __name__ == "__main__":

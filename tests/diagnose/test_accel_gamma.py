@@ -61,6 +61,10 @@ def _result(selected, s=None, **params):
 
 H3 = {"k": 3, "a": 0.08, "a_ci": [0.079, 0.081], "psi": 1.0}
 H2_WEAK = {"k": 2, "a": 0.012, "a_ci": [0.011, 0.013], "psi": 4.0}
+ARM = {"f_ratio": 0.6, "zeta": 0.04, "rms_ratio": 3.0}
+ARM_READ = {"armature": ARM | {"read": True}}
+ARM_NOT_READ = {"armature": ARM | {"read": False, "rms_ratio": 1.1}}
+FEEDBACK = {"mass_ratio": 0.04, "ride_load": 1.0}
 
 
 @pytest.mark.parametrize(
@@ -92,6 +96,31 @@ H2_WEAK = {"k": 2, "a": 0.012, "a_ci": [0.011, 0.013], "psi": 4.0}
             _result(["harmonic"], k=2.0, a=0.2, psi=1.6),
             False,
         ),
+        # the armature's ring read and no feedback selected; not read: nothing to say
+        (_accel(1.0, 0.99, 1.01) | ARM_READ, _result(["restitution"], e=0.5), True),
+        (_accel(1.0, 0.99, 1.01) | ARM_NOT_READ, _result(["restitution"], e=0.5), False),
+        # feedback fitted near the reading (f_ratio 2 %, zeta 25 % off), zeta 2.2 times
+        # the reading, f_ratio 17 % off; and a plate reading off 1 stays silent beside it
+        (
+            _accel(1.0, 0.99, 1.01) | ARM_READ,
+            _result(["feedback"], f_ratio=0.61, zeta=0.05, **FEEDBACK),
+            False,
+        ),
+        (
+            _accel(1.0, 0.99, 1.01) | ARM_READ,
+            _result(["feedback"], f_ratio=0.61, zeta=0.09, **FEEDBACK),
+            True,
+        ),
+        (
+            _accel(1.0, 0.99, 1.01) | ARM_READ,
+            _result(["feedback"], f_ratio=0.7, zeta=0.04, **FEEDBACK),
+            True,
+        ),
+        (
+            _accel(0.93, 0.925, 0.935) | ARM_READ,
+            _result(["feedback"], f_ratio=0.6, zeta=0.04, **FEEDBACK),
+            False,
+        ),
     ],
 )
 def test_accel_warnings(accel, result, warned):
@@ -114,6 +143,37 @@ def test_fix_accel_holds_the_scale_and_the_strongest_harmonic():
     assert accel_fixed(_accel(0.97, 0.96, 0.98, [H3, H2_WEAK])) == {
         "s": 0.97, "k": 3.0, "a": 0.08, "psi": 1.0,
     }  # fmt: skip
+
+
+def test_fix_accel_holds_the_armature_only_where_its_ring_is_read():
+    # with the armature read the plate's reading is not the command's: s is fitted
+    assert accel_fixed(_accel(0.97, 0.96, 0.98, [H3]) | ARM_READ) == {
+        "f_ratio": 0.6, "zeta": 0.04, "k": 3.0, "a": 0.08, "psi": 1.0,
+    }  # fmt: skip
+    assert accel_fixed(_accel(0.97, 0.96, 0.98) | ARM_NOT_READ) == {"s": 0.97}
+
+
+def test_a_zeta_far_from_the_reading_names_both():
+    (line,) = accel_warnings(
+        _accel(1.0, 0.99, 1.01) | ARM_READ,
+        _result(["feedback"], f_ratio=0.61, zeta=0.09, **FEEDBACK),
+    )
+    assert (
+        line
+        == "feedback zeta = 0.09 fitted, but the accelerometer reads f_ratio = 0.6, zeta = 0.04"
+    )
+
+
+def test_with_the_flights_the_shipped_run_reads_its_armature_too():
+    # reference: config/rig/accel_g2-4.yaml, an 18 Hz armature at a 35 Hz drive
+    from bouncelab.flights import extract_run
+
+    run_dir = REPO / "raw" / "accel_g2-4"
+    flights, _qc = extract_run(run_dir)
+    accel, notes = accel_calibration(load_run(run_dir), flights)
+    assert notes == [] and accel["armature"]["read"]
+    assert abs(accel["armature"]["f_ratio"] - 18.0 / 35.0) < 0.01 * 18.0 / 35.0
+    assert "armature" not in accel_calibration(load_run(run_dir))[0]  # not without flights
 
 
 @pytest.fixture(scope="module")

@@ -213,6 +213,17 @@ def test_accepted_effects_caption_shows_the_accelerometer_beside_the_drop_test(t
         "accelerometer: s = 0.9272 [0.9227, 0.9321], harmonic k = 3: "
         "a = 0.0802 [0.0797, 0.0813], psi = 1.008 (held in the fits))"
     )
+    diag["accel_calibration"] |= {
+        "harmonics": [],
+        "armature": {"read": True, "f_ratio": 0.5145, "zeta": 0.03749, "rms_ratio": 2.7},
+    }
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+    assert caption().endswith(
+        "armature ring-down: f_ratio = 0.5145, zeta = 0.03749 (held in the fits))"
+    )
+    diag["accel_calibration"]["armature"]["read"] = False
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+    assert caption().endswith(", no armature ring-down read (held in the fits))")
     del diag["accel_calibration"]
     (run / "diagnosis.json").write_text(json.dumps(diag))
     assert caption() == "Effects accepted, in order (drop-test calibration: -)"

@@ -36,8 +36,9 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--fix-accel",
         action="store_true",
-        help="hold gamma_scale's s, and the harmonic's k, a, psi when one is read, at what "
-        "the run's accelerometer reads (needs an accel channel and accel_v_per_g)",
+        help="hold what the run's accelerometer reads: the feedback's f_ratio and zeta "
+        "where it reads the armature's ring-down, else gamma_scale's s; the harmonic's k, "
+        "a, psi when it reads one (needs an accel channel and accel_v_per_g)",
     )
     p.add_argument(
         "--flights",

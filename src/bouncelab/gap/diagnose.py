@@ -28,6 +28,7 @@ from bouncelab.flights.accel import (
     harmonics_from_accel,
     hum_clashes,
 )
+from bouncelab.flights.armature import armature_from_accel
 from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
 from bouncelab.gap.features import circular_mean, compare_features, wrap_angle
 from bouncelab.gap.fit import (
@@ -110,6 +111,13 @@ ACCEL_HARMONIC_WARN = 0.03
 #: Relative distance between a fitted harmonic's ``a`` and the accelerometer's beyond
 #: which (with the reading's interval clear of it) a warning says so.
 ACCEL_HARMONIC_REL = 0.3
+
+#: Relative distances between a fitted armature's ``f_ratio`` and ``zeta`` and the
+#: accelerometer's reading of its ring-down beyond which a warning says so: the reading
+#: is within 1 % and 15 % of the virtual rig's (``bench_accel_armature.py``); the flight
+#: times leave zeta 25-400 % off on the blind combinations (docs/diagnosis.md, section 5).
+ACCEL_F_RATIO_REL = 0.1
+ACCEL_ZETA_REL = 0.5
 
 
 def worth_a_retry(result: dict) -> bool:
@@ -790,10 +798,11 @@ def diagnose_run(
         :func:`bouncelab.gap.seeds.seed_check` of the seeds tried) and a warning; when none
         does, the first seed's diagnosis, with ``retry``. Each retry costs a whole
         diagnosis, only on runs left unexplained; 0: never.
-    fix_accel : hold ``gamma_scale``'s ``s`` at the Gamma scale the run's
-        accelerometer reads (:func:`accel_calibration`), and the ``harmonic``'s ``k``,
-        ``a``, ``psi`` at its strongest harmonic when it reads one, as
-        ``fix_calibration`` holds ``mu`` and ``e``; needs an ``accel`` channel and
+    fix_accel : hold what the run's accelerometer reads (:func:`accel_calibration`,
+        :func:`accel_fixed`) as ``fix_calibration`` holds ``mu`` and ``e``: the
+        ``feedback``'s ``f_ratio`` and ``zeta`` where it reads the armature's ring-down,
+        else ``gamma_scale``'s ``s``; and the ``harmonic``'s ``k``, ``a``, ``psi`` at its
+        strongest harmonic when it reads one. Needs an ``accel`` channel and
         ``accel_v_per_g``.
 
     Returns
@@ -813,14 +822,10 @@ def diagnose_run(
         raise BouncelabError(None, f"check_seeds must be >= 1, not {check_seeds}")
     if retries < 0:
         raise BouncelabError(None, f"retries must be >= 0, not {retries}")
-    accel, accel_notes = accel_calibration(run)
-    if fix_accel and accel is None:
+    if fix_accel and ("accel" not in run.channels or not run.accel_v_per_g):
         raise BouncelabError(
-            run.yaml_path,
-            "--fix-accel needs a readable accel channel and accel_v_per_g"
-            + (f" ({accel_notes[0]})" if accel_notes else ""),
+            run.yaml_path, "--fix-accel needs a readable accel channel and accel_v_per_g"
         )
-    fixed = accel_fixed(accel) if fix_accel else None
     qc = None
     if flights is None:
         from bouncelab.flights import extract_run
@@ -832,6 +837,14 @@ def diagnose_run(
         duration = _recording_duration(run)
         if not isinstance(flights, pd.DataFrame):
             qc = _qc_beside(flights)
+    accel, accel_notes = accel_calibration(run, table)
+    if fix_accel and accel is None:
+        raise BouncelabError(
+            run.yaml_path,
+            "--fix-accel needs a readable accel channel and accel_v_per_g"
+            + (f" ({accel_notes[0]})" if accel_notes else ""),
+        )
+    fixed = accel_fixed(accel) if fix_accel else None
 
     def diagnosis(with_seed: int) -> dict:
         return diagnose_flights(
@@ -893,38 +906,56 @@ def diagnose_run(
     return result
 
 
-def accel_calibration(run) -> tuple[dict | None, list[str]]:
+def accel_calibration(run, flights: pd.DataFrame | None = None) -> tuple[dict | None, list[str]]:
     """The Gamma scale and the drive's harmonics an accelerometer on the plate reads
     (:func:`bouncelab.flights.accel.gamma_scale_from_accel`,
     :func:`bouncelab.flights.accel.harmonics_from_accel`), shown beside a fitted
     ``gamma_scale`` and ``harmonic`` as a drop test's mu and e are beside the fitted ones;
     ``(None, [])`` for a run without an ``accel`` channel and its ``accel_v_per_g``.
+    With the run's measured ``flights`` (the extraction's table), also the shaker's
+    armature as its ring-down after the impacts reads it (``armature``:
+    :func:`bouncelab.flights.armature.read_armature`, None where no step qualifies).
 
     A channel that cannot be read does not stop the diagnosis, which reads the flights:
     ``(None, [the reason])``.
     """
+    from bouncelab.runs import read_recording
+
+    if run.kind != "sweep" or "accel" not in run.channels or not run.accel_v_per_g:
+        return None, []
     try:
-        by_step = accel_gamma_run(run)
+        rec = read_recording(run, roles=("accel",))
+        by_step = accel_gamma_run(run, rec)
+        armature = None if flights is None else armature_from_accel(run, flights, rec)
     except BouncelabError as exc:
         return None, [f"accelerometer not read: {exc}"]
-    if by_step is None:
-        return None, []
     scale = gamma_scale_from_accel(by_step)
     if scale is None:
         return None, [f"accelerometer: no step with Gamma >= {MIN_GAMMA_FOR_SCALE:g} to read"]
-    return {
+    out = {
         **scale,
         "harmonics": harmonics_from_accel(by_step),
         # at these the mains hum and a plate harmonic are one frequency: not read
         "harmonics_on_hum": sorted(hum_clashes(run.drive_frequency_hz)),
         "by_step": _json_safe(by_step.to_dict(orient="list")),
-    }, []
+    }
+    if flights is not None:
+        out["armature"] = armature
+    return out, []
 
 
 def accel_fixed(accel: dict) -> dict:
-    """The parameters ``--fix-accel`` holds: ``s`` at the accelerometer's Gamma scale and,
-    when it reads a harmonic, ``k``, ``a``, ``psi`` at the strongest one."""
-    fixed = {"s": float(accel["s"])}
+    """The parameters ``--fix-accel`` holds: when it reads a harmonic, ``k``, ``a``,
+    ``psi`` at the strongest one; when it reads the armature's ring-down, ``f_ratio`` and
+    ``zeta`` at it (``mass_ratio`` is fitted), else ``s`` at the Gamma scale it reads. Not
+    both: the plate an accelerometer sees is the command less the armature's loading by
+    the riding body, which ``feedback`` models, so its ``s`` is then not the command's."""
+    fixed = {}
+    arm = accel.get("armature")
+    if arm and arm["read"]:
+        fixed |= {"f_ratio": float(arm["f_ratio"]), "zeta": float(arm["zeta"])}
+    else:
+        fixed["s"] = float(accel["s"])
     if accel.get("harmonics"):
         h = accel["harmonics"][0]
         fixed |= {"k": float(h["k"]), "a": float(h["a"]), "psi": float(h["psi"])}
@@ -942,14 +973,45 @@ def accel_warnings(accel: dict | None, result: dict, tol: float = ACCEL_SCALE_TO
     read, or reads more than :data:`ACCEL_HARMONIC_REL` off; no harmonic selected while
     it reads one at ``a >= ACCEL_HARMONIC_WARN``.
 
-    None when the diagnosis selected the shaker's armature (``feedback``): a riding body
-    loads it and the plate then moves less than commanded, by a share that changes with
-    Gamma (the rig: 0.4 % at Gamma 3.5 to 7 % at 0.6), which the accelerometer reads and
-    ``gamma_scale`` does not model; the impacts ring it at the drive's harmonics too.
+    Armature: :func:`_armature_warnings`. When the diagnosis selected the shaker's
+    armature (``feedback``) only these are given, the Gamma scale and the harmonics not
+    compared: a riding body loads it and the plate then moves less than commanded, by a
+    share that changes with Gamma (the rig: 0.4 % at Gamma 3.5 to 7 % at 0.6), which the
+    accelerometer reads and ``gamma_scale`` does not model; the impacts ring it at the
+    drive's harmonics too.
     """
-    if accel is None or "feedback" in result.get("selected", []):
+    if accel is None:
         return []
-    return _scale_warnings(accel, result, tol) + _harmonic_warnings(accel, result)
+    armature = _armature_warnings(accel, result)
+    if "feedback" in result.get("selected", []):
+        return armature
+    return _scale_warnings(accel, result, tol) + _harmonic_warnings(accel, result) + armature
+
+
+def _armature_warnings(accel: dict, result: dict) -> list[str]:
+    """Where the accelerometer reads the armature's ring-down (``accel["armature"]``,
+    ``read``): no ``feedback`` selected, or a fitted ``f_ratio`` more than
+    :data:`ACCEL_F_RATIO_REL` or ``zeta`` more than :data:`ACCEL_ZETA_REL` (relative) off
+    the reading. Nothing where it reads none: a slow or heavily damped armature that the
+    impacts ring in step with the drive looks like the drive's harmonics."""
+    arm = accel.get("armature")
+    if not arm or not arm["read"]:
+        return []
+    read = f"f_ratio = {arm['f_ratio']:.3g}, zeta = {arm['zeta']:.3g}"
+    if "feedback" not in result.get("selected", []):
+        return [
+            f"the accelerometer reads the shaker's armature ringing after the impacts ({read}), "
+            "but no feedback was selected"
+        ]
+    params = result["final_model"]["params"]
+    off = [
+        f"{name} = {float(params[name]):.3g}"
+        for name, rel in (("f_ratio", ACCEL_F_RATIO_REL), ("zeta", ACCEL_ZETA_REL))
+        if abs(float(params[name]) - arm[name]) > rel * arm[name]
+    ]
+    if off:
+        return [f"feedback {', '.join(off)} fitted, but the accelerometer reads {read}"]
+    return []
 
 
 def _scale_warnings(accel: dict, result: dict, tol: float) -> list[str]:

@@ -255,8 +255,8 @@ def _params_text(params: dict, ci: dict | None = None) -> str:
 
 
 def _accel_text(accel: dict | None) -> str:
-    """The accelerometer's readings (Gamma scale, harmonics) for the accepted effects'
-    caption, or ''."""
+    """The accelerometer's readings (Gamma scale, harmonics, the armature's ring-down)
+    for the accepted effects' caption, or ''."""
     if not accel:
         return ""
     text = "; accelerometer: " + _params_text({"s": accel.get("s")}, {"s": accel.get("s_ci")})
@@ -264,6 +264,13 @@ def _accel_text(accel: dict | None) -> str:
         text += f", harmonic k = {h['k']:g}: " + _params_text(
             {"a": h["a"], "psi": h["psi"]}, {"a": h["a_ci"]}
         )
+    arm = accel.get("armature")
+    if arm and arm.get("read"):
+        text += ", armature ring-down: " + _params_text(
+            {"f_ratio": arm["f_ratio"], "zeta": arm["zeta"]}, {}
+        )
+    elif arm is not None:
+        text += ", no armature ring-down read"
     if accel.get("fixed"):
         text += " (held in the fits)"
     return text

@@ -64,7 +64,10 @@ H2_WEAK = {"k": 2, "a": 0.012, "a_ci": [0.011, 0.013], "psi": 4.0}
 ARM = {"f_ratio": 0.6, "zeta": 0.04, "rms_ratio": 3.0}
 ARM_READ = {"armature": ARM | {"read": True}}
 ARM_NOT_READ = {"armature": ARM | {"read": False, "rms_ratio": 1.1}}
-FEEDBACK = {"mass_ratio": 0.04, "ride_load": 1.0}
+
+
+def _feedback(f_ratio, zeta):
+    return _result(["feedback"], f_ratio=f_ratio, zeta=zeta, mass_ratio=0.04, ride_load=1.0)
 
 
 @pytest.mark.parametrize(
@@ -101,26 +104,10 @@ FEEDBACK = {"mass_ratio": 0.04, "ride_load": 1.0}
         (_accel(1.0, 0.99, 1.01) | ARM_NOT_READ, _result(["restitution"], e=0.5), False),
         # feedback fitted near the reading (f_ratio 2 %, zeta 25 % off), zeta 2.2 times
         # the reading, f_ratio 17 % off; and a plate reading off 1 stays silent beside it
-        (
-            _accel(1.0, 0.99, 1.01) | ARM_READ,
-            _result(["feedback"], f_ratio=0.61, zeta=0.05, **FEEDBACK),
-            False,
-        ),
-        (
-            _accel(1.0, 0.99, 1.01) | ARM_READ,
-            _result(["feedback"], f_ratio=0.61, zeta=0.09, **FEEDBACK),
-            True,
-        ),
-        (
-            _accel(1.0, 0.99, 1.01) | ARM_READ,
-            _result(["feedback"], f_ratio=0.7, zeta=0.04, **FEEDBACK),
-            True,
-        ),
-        (
-            _accel(0.93, 0.925, 0.935) | ARM_READ,
-            _result(["feedback"], f_ratio=0.6, zeta=0.04, **FEEDBACK),
-            False,
-        ),
+        (_accel(1.0, 0.99, 1.01) | ARM_READ, _feedback(0.61, 0.05), False),
+        (_accel(1.0, 0.99, 1.01) | ARM_READ, _feedback(0.61, 0.09), True),
+        (_accel(1.0, 0.99, 1.01) | ARM_READ, _feedback(0.7, 0.04), True),
+        (_accel(0.93, 0.925, 0.935) | ARM_READ, _feedback(0.6, 0.04), False),
     ],
 )
 def test_accel_warnings(accel, result, warned):
@@ -156,7 +143,7 @@ def test_fix_accel_holds_the_armature_only_where_its_ring_is_read():
 def test_a_zeta_far_from_the_reading_names_both():
     (line,) = accel_warnings(
         _accel(1.0, 0.99, 1.01) | ARM_READ,
-        _result(["feedback"], f_ratio=0.61, zeta=0.09, **FEEDBACK),
+        _feedback(0.61, 0.09),
     )
     assert (
         line

@@ -83,7 +83,10 @@ def _feedback(f_ratio, zeta):
         (_accel(0.93, 0.925, 0.935), _result(["gamma_scale"], 0.94), False),
         (_accel(0.93, 0.925, 0.935), _result(["gamma_scale"], 1.05), True),
         # with the armature selected the plate's own motion differs per step: no warning
+        # within 10 %, one beyond (a gamma_scale standing in for another effect)
         (_accel(0.93, 0.925, 0.935), _result(["restitution", "feedback"]), False),
+        (_accel(1.0, 0.99, 1.01), _result(["feedback", "gamma_scale"], 1.08), False),
+        (_accel(1.0, 0.99, 1.01), _result(["feedback", "gamma_scale"], 1.15), True),
         # a harmonic read at a 0.08 and none selected; a weak one (0.012) only listed
         (_accel(1.0, 0.99, 1.01, [H3]), _result(["friction"], mu=0.2), True),
         (_accel(1.0, 0.99, 1.01, [H2_WEAK]), _result(["friction"], mu=0.2), False),
@@ -133,9 +136,8 @@ def test_fix_accel_holds_the_scale_and_the_strongest_harmonic():
 
 
 def test_fix_accel_holds_the_armature_only_where_its_ring_is_read():
-    # with the armature read the plate's reading is not the command's: s is fitted
     assert accel_fixed(_accel(0.97, 0.96, 0.98, [H3]) | ARM_READ) == {
-        "f_ratio": 0.6, "zeta": 0.04, "k": 3.0, "a": 0.08, "psi": 1.0,
+        "s": 0.97, "f_ratio": 0.6, "zeta": 0.04, "k": 3.0, "a": 0.08, "psi": 1.0,
     }  # fmt: skip
     assert accel_fixed(_accel(0.97, 0.96, 0.98) | ARM_NOT_READ) == {"s": 0.97}
 

@@ -36,9 +36,9 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--fix-accel",
         action="store_true",
-        help="hold what the run's accelerometer reads: the feedback's f_ratio and zeta "
-        "where it reads the armature's ring-down, else gamma_scale's s; the harmonic's k, "
-        "a, psi when it reads one (needs an accel channel and accel_v_per_g)",
+        help="hold what the run's accelerometer reads: gamma_scale's s; the feedback's "
+        "f_ratio and zeta where it reads the armature's ring-down; the harmonic's k, a, psi "
+        "where it reads one (needs an accel channel and accel_v_per_g)",
     )
     p.add_argument(
         "--flights",

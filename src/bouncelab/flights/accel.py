@@ -427,6 +427,12 @@ def harmonics_from_accel(
     return sorted(out, key=lambda h: -h["a"])
 
 
+def accel_in_g(run) -> bool:
+    """Whether ``run`` is a sweep with an ``accel`` channel and its ``accel_v_per_g``: what
+    the accelerometer's readings need (volts alone do not say what a g is)."""
+    return run.kind == "sweep" and "accel" in run.channels and bool(run.accel_v_per_g)
+
+
 def accel_gamma_run(run, recording=None) -> pd.DataFrame | None:
     """:func:`plate_gamma_by_step` of a sweep run (:class:`bouncelab.runs.Run`) with an
     ``accel`` channel and its ``accel_v_per_g``; None without either (volts alone do not
@@ -434,7 +440,7 @@ def accel_gamma_run(run, recording=None) -> pd.DataFrame | None:
     already read (:func:`bouncelab.runs.read_recording`), else it is read here."""
     from bouncelab.runs import read_recording, step_table
 
-    if run.kind != "sweep" or "accel" not in run.channels or not run.accel_v_per_g:
+    if not accel_in_g(run):
         return None
     rec = recording if recording is not None else read_recording(run, roles=("accel",))
     steps = step_table(run, rec.duration_s)

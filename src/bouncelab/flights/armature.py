@@ -41,7 +41,7 @@ import pandas as pd
 from scipy.optimize import minimize
 from scipy.signal import butter, lfilter, sosfiltfilt
 
-from bouncelab.flights.accel import drive_basis
+from bouncelab.flights.accel import accel_in_g, drive_basis
 
 G_M_S2 = 9.80665
 LOWPASS_DRIVES = 6.0  # low-pass corner in drive frequencies: the ring (below it) stays
@@ -191,9 +191,10 @@ def armature_columns(seg: dict, fn_hz: float, zeta: float, arm=None) -> np.ndarr
     return np.concatenate([np.stack(free, axis=1), kicks, load[:, None], pole[:, None]], axis=1)
 
 
-def _step_fit(seg: dict, fn_hz: float, zeta: float, arm: np.ndarray | None):
+def _step_fit(seg: dict, fn_hz: float, zeta: float, arm: np.ndarray | None, motion=False):
     """One step's least squares with the armature's columns: the residual's sum of
-    squares and the fitted armature acceleration (m,), m/s^2. By variable projection:
+    squares and, with ``motion``, the fitted armature acceleration (m,), m/s^2 (else
+    None). By variable projection:
     the fixed columns are projected out of both sides, and the armature's coefficients
     of the joint fit are those of the projected problem (normal equations on columns
     scaled to unit norm, so that the Gram matrix stays well conditioned)."""
@@ -205,7 +206,7 @@ def _step_fit(seg: dict, fn_hz: float, zeta: float, arm: np.ndarray | None):
     vp /= norm
     rhs = vp.T @ r
     c, *_ = np.linalg.lstsq(vp.T @ vp, rhs, rcond=1e-12)
-    return max(float(r @ r - rhs @ c), 0.0), v @ (c / norm)
+    return max(float(r @ r - rhs @ c), 0.0), (v @ (c / norm) if motion else None)
 
 
 def residual_ms(segs: list[dict], fn_hz: float | None, zeta: float | None, arms=None) -> float:
@@ -259,7 +260,7 @@ def read_armature(segs: list[dict], drive_hz: float) -> dict | None:
         x, ms = res.x, float(res.fun)
         if done < passes:  # the next pass loads the armature with the whole plate's motion
             fn, zeta = math.exp(x[0]) * drive_hz, math.exp(x[1])
-            arms = [_step_fit(seg, fn, zeta, None if arms is None else arms[i])[1]
+            arms = [_step_fit(seg, fn, zeta, None if arms is None else arms[i], True)[1]
                     for i, seg in enumerate(segs)]  # fmt: skip
     ratio = math.sqrt(ms_fixed / max(ms, 1e-300))
     return {
@@ -281,7 +282,7 @@ def armature_from_accel(run, flights: pd.DataFrame, recording=None) -> dict | No
     run's recording with ``accel`` already read."""
     from bouncelab.runs import read_recording, step_table
 
-    if run.kind != "sweep" or "accel" not in run.channels or not run.accel_v_per_g:
+    if not accel_in_g(run):
         return None
     if not {"t_takeoff_s", "t_landing_s"} <= set(flights.columns):
         return None  # a flight table without its edge times (CONTRACTS.md section 3)

@@ -24,6 +24,7 @@ from bouncelab.flights.accel import (
     MIN_GAMMA_FOR_SCALE,
     MIN_HARMONIC_A,
     accel_gamma_run,
+    accel_in_g,
     gamma_scale_from_accel,
     harmonics_from_accel,
     hum_clashes,
@@ -825,7 +826,7 @@ def diagnose_run(
         raise BouncelabError(None, f"check_seeds must be >= 1, not {check_seeds}")
     if retries < 0:
         raise BouncelabError(None, f"retries must be >= 0, not {retries}")
-    if fix_accel and ("accel" not in run.channels or not run.accel_v_per_g):
+    if fix_accel and not accel_in_g(run):
         raise BouncelabError(
             run.yaml_path, "--fix-accel needs a readable accel channel and accel_v_per_g"
         )
@@ -924,7 +925,7 @@ def accel_calibration(run, flights: pd.DataFrame | None = None) -> tuple[dict | 
     """
     from bouncelab.runs import read_recording
 
-    if run.kind != "sweep" or "accel" not in run.channels or not run.accel_v_per_g:
+    if not accel_in_g(run):
         return None, []
     try:
         rec = read_recording(run, roles=("accel",))

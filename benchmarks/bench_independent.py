@@ -193,6 +193,8 @@ def score(truth: dict, diag: dict) -> dict:
         "flights": diag["design"]["work"]["flights"],
         # the refinement's generations (None: not refined; section 1, "Refinement")
         "refine_generations": (diag["design"].get("refine") or {}).get("maxiter"),
+        # additions refused because the effects before them, refitted, did as well
+        "not_earned": [n["effect"] for n in diag.get("not_earned", [])],
     }
 
 

@@ -340,8 +340,8 @@ def test_an_effect_the_refinement_takes_to_null_is_dropped(monkeypatch):
     def fake_fit_many(jobs, pool=None, progress=None, work=None):
         out = []
         for _problem, name, base, _fixed, search, settings, _seed, *_more in jobs:
-            if search == ():
-                out.append(scripted_fit(name, base, 1.95))
+            if search == ():  # restitution refitted from friction's round (4) or its refinement
+                out.append(scripted_fit(name, base, 1.95 if base == {"e": 0.5} else 4.0))
             elif name == "friction+restitution" and settings == "refined":
                 out.append(scripted_fit(name, {"mu": 0.001, "e": 0.5}, 1.9))
             elif name == "friction+restitution":
@@ -1287,3 +1287,47 @@ def test_a_strict_round_leaves_the_armature_out(monkeypatch):
     assert [e for e, _f in sel["accepted"]] == ["restitution"]
     assert [e for e, _f in sel["rounds"][1]] == ["friction"]
     assert "restitution+feedback" not in names and "feedback" in names  # round 1 has it
+
+
+@pytest.mark.parametrize(
+    "refit_gap, taken", [(0.9, ["restitution"]), (2.4, ["restitution", "friction"])]
+)
+def test_an_addition_must_beat_the_effects_before_it_refitted_from_its_point(
+    monkeypatch, refit_gap, taken
+):
+    """Reference: a scripted selection (floor 1). Round 1 takes restitution (10 -> 2.5),
+    round 2's friction + restitution reaches 1.6. Restitution alone, refitted locally from
+    that joint fit's point, reaches ``refit_gap``: at 0.9 the joint fit's gain was
+    restitution's better fit (blind ``g_feedback``, session 47), so friction is not taken,
+    restitution keeps the refit and the selection stops (no addition passes); at 2.4 friction earns
+    its place (0.8 floors and a third of the gap) and is taken."""
+    from bouncelab.gap import select
+
+    starts = []
+
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
+        out = []
+        for _problem, name, base, _fixed, search, *_rest in jobs:
+            if search == ():  # the refit without the addition, from its values
+                starts.append((name, dict(base)))
+                out.append(scripted_fit(name, base, refit_gap))
+            elif name == "restitution":
+                out.append(scripted_fit(name, {"e": 0.3}, 2.5))
+            elif name == "friction+restitution":
+                out.append(scripted_fit(name, {"mu": 0.03, "e": 0.45}, 1.6))
+            else:
+                out.append(scripted_fit(name, {}, 9.5 if name != "ideal" else 10.0))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "restitution", "harmonic"]
+    )
+    assert [e for e, _f in sel["accepted"]] == taken
+    assert starts[0] == ("restitution", {"e": 0.45})  # from the joint fit's values
+    if refit_gap < 1.6:
+        assert sel["not_earned"] == [{"effect": "friction", "floors": 1.6, "without": 0.9}]
+        assert sel["final"].objective == 0.9 and sel["final"].model.params == {"e": 0.45}
+        assert sel["stop"] == "no_improvement"
+    else:
+        assert sel["not_earned"] == [] and sel["final"].objective == 1.6

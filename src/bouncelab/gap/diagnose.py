@@ -485,6 +485,12 @@ def diagnose_flights(
             f"interval [{lo:.4g}, {hi:.4g}] reaches its null value"
         )
 
+    for ne in sel["not_earned"]:
+        warnings.append(
+            f"{ne['effect']} was not taken: its {ne['floors']:.3g} noise floors held out "
+            f"were the effects before it refitted ({ne['without']:.3g} without it)"
+        )
+
     final: FitResult = sel["final"]
     final_gap = heldout_gap(final, problem)
     margin = verdict_margin(problem, final.gaps, select_settings.unexplained_ratio)
@@ -539,6 +545,8 @@ def diagnose_flights(
         # an armature taken alone against every pair of the other effects, or null
         "pair_check": sel["pair_check"],
         "weak_last": sel["weak_last"],
+        # additions whose gain was a better refit of the effects before them
+        "not_earned": sel["not_earned"],
         "rounds": [
             [
                 {

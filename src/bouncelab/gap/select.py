@@ -22,7 +22,10 @@ strength sits at its null value (:data:`INERT`: friction with mu 0) adds nothing
 better refit of the effects already taken: it is not accepted; the current model takes
 that refit's values (refined locally without the inert effect) when they do better,
 and the next addition is judged against it; an effect the final refinement takes to its
-null value is dropped the same way. A selection that ends with the armature alone (or
+null value is dropped the same way. From the second effect on, the proposal must also
+beat the effects before it refitted locally from its own values (:func:`earns_place`):
+a joint refit's gain can be theirs; when it does not, the refit is kept and the
+selection stops. A selection that ends with the armature alone (or
 would, before a strict round) is checked against every pair of the other effects
 (:func:`_pair_for_armature`). The
 selected model's parameters are then refined (:func:`bouncelab.gap.fit.refine_settings`).
@@ -656,6 +659,21 @@ def _without(
     return refit
 
 
+def earns_place(g_new: float, g_without: float, floor: float, margin: float, shrink: float) -> bool:
+    """Whether an addition's held-out gap ``g_new`` beats ``g_without``, the effects before
+    it refitted locally from the addition's own point (:func:`_without`), by ``margin``
+    noise floors and by ``shrink`` of ``g_without`` (the acceptance rule of the module
+    docstring, against that refit instead of the previous round's fit). All in rad.
+
+    Why: a joint refit also refits the effects taken before, from a new start, and its
+    gain can be theirs. On the blind ``g_feedback`` (a riding armature alone) round 1's
+    armature stopped at zeta's bound (2.24 floors); friction beside it took 1.64 floors,
+    but the armature alone refitted from that joint fit's point takes 0.96 (mu 0.027
+    added nothing; docs/diagnosis-log.md, session 47).
+    """
+    return g_without - g_new >= margin * floor and g_new <= (1.0 - shrink) * g_without
+
+
 def _pooled_cloud(fit: FitResult, earlier: FitResult) -> FitResult:
     """``fit`` with the evaluations of ``earlier``, a fit of the same model and
     parameters on the same problem, added to its cloud (``fit`` itself otherwise).
@@ -750,7 +768,7 @@ def forward_select(
         )
         current = base_fit
         effects = list(base_model.effects)
-        rounds, accepted, went_on = [], [], []
+        rounds, accepted, went_on, not_earned = [], [], [], []
         pair_check, pair_fits = None, []
         pair_job = (problem, base_fit, fixed, fit_settings, seed)
 
@@ -852,6 +870,20 @@ def forward_select(
             if g_cur - g_new < settings.margin * floor or too_small:
                 stop = no_gain
                 break
+            if accepted:
+                # the gain must be the addition's, not a better fit of the effects before it
+                alone = _without(problem, best, eff, fixed, fit_settings, seed, pool, work)
+                g_alone = heldout_gap(alone, problem)
+                if not earns_place(g_new, g_alone, floor, settings.margin, shrink):
+                    # no addition passes; the refit (better than the current fit, as it
+                    # failed where the test above passed) is kept
+                    not_earned.append(
+                        {"effect": eff, "floors": g_new / floor, "without": g_alone / floor}
+                    )
+                    current = _pooled_cloud(alone, current)
+                    accepted[-1] = (accepted[-1][0], current)
+                    stop = no_gain
+                    break
             accepted.append((eff, best))
             effects.append(eff)
             current = best
@@ -930,5 +962,6 @@ def forward_select(
         "pair_check": pair_check,
         "box": box,
         "weak_last": weak,
+        "not_earned": not_earned,
         "work": {"flights": work.flights},
     }

@@ -660,13 +660,14 @@ def _without(
 
 
 def earns_place(g_new: float, g_without: float, floor: float, margin: float, shrink: float) -> bool:
-    """Whether an addition's held-out gap ``g_new`` beats ``g_without``, the effects before
-    it refitted locally from the addition's own point (:func:`_without`), by ``margin``
-    noise floors and by ``shrink`` of ``g_without`` (the acceptance rule of the module
-    docstring, against that refit instead of the previous round's fit). All in rad.
+    """The acceptance rule (module docstring): whether an addition's held-out gap ``g_new``
+    beats ``g_without`` by ``margin`` noise floors and by ``shrink`` of ``g_without``. All
+    in rad. ``g_without`` is the current fit's gap and, from the second effect on, also
+    that of the effects before the addition refitted locally from its own point
+    (:func:`_without`).
 
-    Why: a joint refit also refits the effects taken before, from a new start, and its
-    gain can be theirs. On the blind ``g_feedback`` (a riding armature alone) round 1's
+    Why the second: a joint refit also refits the effects taken before, from a new start,
+    and its gain can be theirs. On the blind ``g_feedback`` (a riding armature alone) round 1's
     armature stopped at zeta's bound (2.24 floors); friction beside it took 1.64 floors,
     but the armature alone refitted from that joint fit's point takes 0.96 (mu 0.027
     added nothing; docs/diagnosis-log.md, session 47).
@@ -866,8 +867,7 @@ def forward_select(
             eff, best = proposal
             g_new = heldout_gap(best, problem)
             shrink = settings.strict_shrink if strict else settings.min_shrink
-            too_small = g_new > (1.0 - shrink) * g_cur
-            if g_cur - g_new < settings.margin * floor or too_small:
+            if not earns_place(g_new, g_cur, floor, settings.margin, shrink):
                 stop = no_gain
                 break
             if accepted:

@@ -195,6 +195,8 @@ def score(truth: dict, diag: dict) -> dict:
         "refine_generations": (diag["design"].get("refine") or {}).get("maxiter"),
         # additions refused because the effects before them, refitted, did as well
         "not_earned": [n["effect"] for n in diag.get("not_earned", [])],
+        # additions taken for the takeoff phases where the flight times gained nothing
+        "phase_taken": [n["effect"] for n in diag.get("phase_taken", [])],
     }
 
 

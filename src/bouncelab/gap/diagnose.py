@@ -491,6 +491,13 @@ def diagnose_flights(
             f"were the effects before it refitted ({ne['without']:.3g} without it)"
         )
 
+    for pt in sel["phase_taken"]:
+        warnings.append(
+            f"{pt['effect']} was taken for the takeoff phases, not the flight times: "
+            f"{pt['floors']:.3g} noise floors held out against {pt['current']:.3g} before it, "
+            "whose phases were wrong"
+        )
+
     final: FitResult = sel["final"]
     final_gap = heldout_gap(final, problem)
     margin = verdict_margin(problem, final.gaps, select_settings.unexplained_ratio)
@@ -547,6 +554,8 @@ def diagnose_flights(
         "weak_last": sel["weak_last"],
         # additions whose gain was a better refit of the effects before them
         "not_earned": sel["not_earned"],
+        # additions taken because their takeoff phases were right where the model's were not
+        "phase_taken": sel["phase_taken"],
         "rounds": [
             [
                 {

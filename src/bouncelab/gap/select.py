@@ -916,26 +916,23 @@ def forward_select(
                         "without": heldout_gap(alone, problem) / floor,
                     }
                 )
-                accepted.append((eff, best))
-                effects.append(eff)
-                current = best
-                continue
-            eff, best = proposal
-            g_new = heldout_gap(best, problem)
-            if accepted:
-                # the gain must be the addition's, not a better fit of the effects before it
-                alone = _without(problem, best, eff, fixed, fit_settings, seed, pool, work)
-                g_alone = heldout_gap(alone, problem)
-                if not earns_place(g_new, g_alone, floor, settings.margin, shrink):
-                    # no addition passes; the refit (better than the current fit, as it
-                    # failed where the test above passed) is kept
-                    not_earned.append(
-                        {"effect": eff, "floors": g_new / floor, "without": g_alone / floor}
-                    )
-                    current = _pooled_cloud(alone, current)
-                    accepted[-1] = (accepted[-1][0], current)
-                    stop = no_gain
-                    break
+            else:
+                eff, best = proposal
+                if accepted:
+                    g_new = heldout_gap(best, problem)
+                    # the gain must be the addition's, not a better fit of the effects before it
+                    alone = _without(problem, best, eff, fixed, fit_settings, seed, pool, work)
+                    g_alone = heldout_gap(alone, problem)
+                    if not earns_place(g_new, g_alone, floor, settings.margin, shrink):
+                        # no addition passes; the refit (better than the current fit, as it
+                        # failed where the test above passed) is kept
+                        not_earned.append(
+                            {"effect": eff, "floors": g_new / floor, "without": g_alone / floor}
+                        )
+                        current = _pooled_cloud(alone, current)
+                        accepted[-1] = (accepted[-1][0], current)
+                        stop = no_gain
+                        break
             accepted.append((eff, best))
             effects.append(eff)
             current = best

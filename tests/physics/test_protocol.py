@@ -187,3 +187,25 @@ def test_the_fits_kernel_writes_only_the_columns_the_fits_read():
     others = [c for c in range(K.NCOL) if c not in K.FIT_COLUMNS]
     assert np.isnan(cols[0.0][others]).all()
     assert not np.isnan(cols[1.0]).any()
+
+
+def test_a_flight_the_change_of_gamma_catches_is_not_settled():
+    # a 3rd harmonic puts the takeoff 0.07 rad before each 40-cycle step ends; the instant
+    # amplitude change (the plate's velocity jumps by Delta Gamma) catches the body there
+    m = Model.parse("friction+harmonic", {"mu": 0.2, "k": 3.0, "a": 0.05, "psi": 1.0})
+    gammas, cycles = [4.6, 4.7, 4.8, 4.9, 5.0], [40] * 5
+    df = simulate_protocol(m, gammas, cycles, settle_cycles=10)
+    ends = np.cumsum(cycles) * TWO_PI
+    landing = (df["t_takeoff"] + df["T"]).to_numpy()
+    caught = np.abs(landing - ends[df["step"].to_numpy()]) < K.CAUGHT
+    assert caught.sum() == 4  # at every change of Gamma
+    assert np.all(df["T"].to_numpy()[caught] < 0.1)
+    assert not df["settled"].to_numpy()[caught].any()
+    # the settled flights are the orbits' alone (2.97 rad and longer)
+    assert df.loc[df["settled"], "T"].min() > 1.0
+    # a flight across a change that lands later is kept, as a measured one is
+    gammas, cycles = [1.5, 3.5, 3.6, 2.0], [40, 60, 50, 30]
+    df = simulate_protocol(Model.parse("ideal"), gammas, cycles, settle_cycles=10)
+    ends = np.cumsum(cycles) * TWO_PI
+    across = (df["t_takeoff"] + df["T"]).to_numpy() > ends[df["step"].to_numpy()] + K.CAUGHT
+    assert across.any() and df["settled"].to_numpy()[across].all()

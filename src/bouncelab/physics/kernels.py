@@ -54,7 +54,8 @@ C_CHAT = 8  # 1.0 for a rebound from the sticking region shorter than the flight
 C_START = 9  # ensemble member
 C_STEP = 10  # protocol step of the takeoff
 C_TTO = 11  # absolute takeoff phase since the start (rad)
-C_SETTLED = 12  # 1.0 unless the takeoff is within settle cycles of its step start
+C_SETTLED = 12  # 1.0 unless the takeoff is within settle cycles of its step start or
+#   the change of Gamma itself ends the flight (CAUGHT)
 C_X0 = 13  # body height at takeoff
 C_V0 = 14  # body velocity at takeoff (lab frame)
 C_FLIGHT = 15  # flight index in the trajectory (skipped transients included)
@@ -67,6 +68,12 @@ NCOL = 18
 #: stores touched 18 pages; 5 take 7-10 % off one friction + restitution + harmonic
 #: evaluation (session 35; within the noise of whole diagnoses).
 FIT_COLUMNS = (C_T, C_TTO, C_START, C_STEP, C_SETTLED)
+
+#: rad: a flight that lands within this of a change of Gamma it flew across was caught by
+#: the change itself (the plate's velocity jumps there): not settled (:func:`trajectory`).
+#: Such a landing is at the change to rounding (1e-9 rad measured); a real one that close
+#: would need a flight aimed at that instant to 1e-6 rad (50 ns at 20 Hz).
+CAUGHT = 1e-6
 
 HIST = 4  # recent flights remembered for the guess of the next flight's duration
 
@@ -1426,6 +1433,11 @@ def trajectory(
         n_fl += 1
         phil = phis + s
         row[cur, C_T] = total
+        if k != k_to and s <= CAUGHT:
+            # caught by the change of Gamma itself: the instant amplitude change jumps the
+            # plate's velocity (by Delta Gamma), which catches a body that took off just
+            # before it, a flight no real (or ramped) drive makes. Not compared.
+            row[cur, C_SETTLED] = 0.0
         row[cur, C_PHIL] = mod_two_pi(phil)
         # chatter: a rebound from the sticking region shorter than the flight before it,
         # i.e. part of a decaying sequence of impacts heading for sticking

@@ -220,7 +220,10 @@ def simulate_protocol(
 
     Returns the columns of :func:`simulate_grid` plus ``step`` (index of the takeoff's
     step), ``t_takeoff`` (phase since the protocol start, rad) and ``settled`` (False
-    for takeoffs within the first ``settle_cycles`` cycles of their step).
+    for takeoffs within the first ``settle_cycles`` cycles of their step, and for a
+    flight the change of Gamma itself ends: the instant amplitude change jumps the
+    plate's velocity and catches a body that took off just before it, a flight a real
+    drive, whose amplitude changes over cycles, does not make).
     """
     model = _check_model(model)
     g, step_end = _protocol_steps(gammas, cycles, settle_cycles)

@@ -1113,7 +1113,7 @@ def test_a_later_effect_whose_refined_interval_reaches_its_null_value_is_dropped
     round 2 a harmonic of a 0.008 beside it (-> 1.0). With the harmonic's interval
     after the refinement reaching a = 0 (0 to 0.013: blind ``g_restitution_low`` with
     diagnosis seed 3) the harmonic is dropped, restitution refitted without it, and
-    ``weak_last`` says why; with an interval clear of the null band (0.007 to 0.010,
+    ``weak_dropped`` says why; with an interval clear of the null band (0.007 to 0.010,
     the band being a <= 0.0025) it is kept."""
     from bouncelab.gap import select
 
@@ -1130,12 +1130,64 @@ def test_a_later_effect_whose_refined_interval_reaches_its_null_value_is_dropped
     )  # fmt: skip
     taken = [e for e, _f in sel["accepted"]]
     if kept:
-        assert taken == ["restitution", "harmonic"] and sel["weak_last"] is None
+        assert taken == ["restitution", "harmonic"] and sel["weak_dropped"] == []
         assert sel["final"].objective == 1.0
     else:
         assert taken == ["restitution"] and sel["final"].objective == 5.0
-        assert sel["weak_last"] == {"effect": "harmonic", "param": "a", "interval": [0.0, 0.013]}
+        assert sel["weak_dropped"] == [
+            {"effect": "harmonic", "param": "a", "interval": [0.0, 0.013]}
+        ]
         assert calls[-1] == "restitution"  # refitted without the harmonic
+
+
+@pytest.mark.parametrize("s_interval, kept", [((0.991, 1.003), False), ((0.95, 0.97), True)])
+def test_a_middle_effect_whose_refined_interval_reaches_its_null_value_is_dropped(
+    monkeypatch, s_interval, kept
+):
+    """Reference: a scripted selection (floor 1), the shape of blind
+    ``w_friction_harmonic`` at diagnosis seed 17. Round 1 takes a harmonic (10 -> 5),
+    round 2 a Gamma miscalibration beside it (-> 3), round 3 friction (-> 0.5). With the
+    miscalibration's interval in the final model reaching s = 1 (0.991 to 1.003, the
+    band being |s - 1| <= 0.002) it is dropped though it is not the last effect, and the
+    final model refitted without it (0.6); with an interval clear of the band (0.95 to
+    0.97) all three are kept."""
+    from bouncelab.gap import select
+
+    calls = []
+    h = {"a": 0.05, "k": 3.0, "psi": 1.0}
+    table = {
+        "ideal": (10.0, {}),
+        "harmonic": (5.0, h),
+        "harmonic+gamma_scale": (3.0, {**h, "s": 0.995}),
+        "friction+harmonic+gamma_scale": (0.5, {**h, "s": 0.995, "mu": 0.2}),
+        "friction+harmonic": (4.0, {**h, "mu": 0.2}),  # round 2: the miscalibration wins
+    }
+    scripted = armature_table_fit_many(table, calls)
+
+    def fit_many(jobs, *args, **kwargs):
+        fits = scripted(jobs, *args, **kwargs)
+        for (_p, name, _b, _f, search, *_r), fit in zip(jobs, fits, strict=True):
+            if name == "friction+harmonic" and search == ():  # the local refit without s
+                fit.objective = 0.6
+        return fits
+
+    script_selection(monkeypatch, fit_many)
+    ci = {"a": [0.045, 0.055], "s": list(s_interval), "mu": [0.18, 0.21]}
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["harmonic", "gamma_scale", "friction"],
+        interval=lambda fit, problem, i: ci,
+    )  # fmt: skip
+    taken = [e for e, _f in sel["accepted"]]
+    if kept:
+        assert taken == ["harmonic", "gamma_scale", "friction"] and sel["weak_dropped"] == []
+        assert sel["final"].objective == 0.5
+    else:
+        assert taken == ["harmonic", "friction"] and sel["final"].objective == 0.6
+        assert sel["weak_dropped"] == [
+            {"effect": "gamma_scale", "param": "s", "interval": [0.991, 1.003]}
+        ]
+        assert calls[-1] == "friction+harmonic"  # refitted without the miscalibration
+        assert sel["accepted"][-1][1] is sel["final"]
 
 
 def test_no_pair_check_when_the_armature_is_not_alone(monkeypatch):

@@ -477,8 +477,7 @@ def diagnose_flights(
             f"the shaker's armature alone ({pair['armature']:.3g} noise floors held out) "
             f"was replaced by {a} + {b} ({pair['pairs'][f'{a}+{b}']:.3g})"
         )
-    weak = sel["weak_last"]
-    if weak:
+    for weak in sel["weak_dropped"]:
         lo, hi = weak["interval"]
         warnings.append(
             f"{weak['effect']} was dropped: after the refinement its {weak['param']} "
@@ -551,7 +550,7 @@ def diagnose_flights(
         "went_on": sel["went_on"],
         # an armature taken alone against every pair of the other effects, or null
         "pair_check": sel["pair_check"],
-        "weak_last": sel["weak_last"],
+        "weak_dropped": sel["weak_dropped"],
         # additions whose gain was a better refit of the effects before them
         "not_earned": sel["not_earned"],
         # additions taken because their takeoff phases were right where the model's were not

@@ -763,13 +763,16 @@ def forward_select(
         (:func:`_phase_pick`; ``phase_taken`` in the result).
     interval : ``(fit, problem, step index) -> {param: [lo, hi]}``, the intervals the
         diagnosis reports for a step (its ``params_ci``). With two or more effects
-        selected, the last one is dropped (and the model before it refitted) when its
-        strength's interval, after the refinement, reaches its null value widened by the
-        :data:`INERT` tolerance (``weak_last`` in the result). Why: on the stored blind
-        outputs of session 26 this separates the 4 spurious later effects from 51 true
-        ones (a harmonic of a 0.008 after restitution, a Gamma miscalibration of s
-        0.99); the round fits' intervals are too narrow to do it at selection time
-        (docs/diagnosis-log.md, session 26).
+        selected, every effect after the first whose strength's interval in the final
+        model, after the refinement, reaches its null value widened by the
+        :data:`INERT` tolerance is dropped and the final model refitted without it
+        (``weak_dropped`` in the result). Why: on the stored blind outputs of session 26
+        this separates the 4 spurious later effects from 51 true ones (a harmonic of a
+        0.008 after restitution, a Gamma miscalibration of s 0.99); the round fits'
+        intervals are too narrow to do it at selection time (docs/diagnosis-log.md,
+        session 26). A spurious effect can sit in the middle of the selection (blind
+        ``w_friction_harmonic`` at diagnosis seed 17: harmonic, s 0.995 with interval
+        [0.991, 1.003], then friction; session 50).
 
     Returns
     -------
@@ -782,7 +785,8 @@ def forward_select(
     ``n_draws`` of the refinement, or ``problem`` itself), ``refined`` (the refinement's
     settings, or None), ``went_on`` (the reasons of ``unsettled`` that let the
     selection go on past the floor, one per round), ``not_earned`` and ``phase_taken``
-    (additions refused by :func:`earns_place`'s refit, taken for the phases) and
+    (additions refused by :func:`earns_place`'s refit, taken for the phases),
+    ``weak_dropped`` (list of ``{"effect", "param", "interval"}``, see ``interval``) and
     ``work`` (``flights``: what
     every fit simulated, :class:`WorkTally`).
     """
@@ -986,18 +990,22 @@ def forward_select(
             if box["kept"]:
                 accepted[-1] = (accepted[-1][0], current)
                 final_problem = problem
-        weak = None
+        weak = []
         if interval is not None and len(accepted) >= 2:
             # a later effect whose refined interval reaches its null value: not an effect
-            eff = accepted[-1][0]
-            name, null, tol = INERT[eff]
-            lo, hi = interval(current, final_problem, len(accepted) - 1)[name]
-            if lo - tol <= null <= hi + tol:
-                weak = {"effect": eff, "param": name, "interval": [float(lo), float(hi)]}
-                accepted.pop()
+            ci = interval(current, final_problem, len(accepted) - 1)
+            for eff, _fit in accepted[1:]:
+                name, null, tol = INERT[eff]
+                lo, hi = ci[name]
+                if lo - tol <= null <= hi + tol:
+                    weak.append({"effect": eff, "param": name, "interval": [float(lo), float(hi)]})
+            for w in weak:
                 current = _without(
-                    final_problem, current, eff, fixed, fit_settings, seed, pool, work
+                    final_problem, current, w["effect"], fixed, fit_settings, seed, pool, work
                 )
+            if weak:
+                dropped = {w["effect"] for w in weak}
+                accepted = [(e, f) for e, f in accepted if e not in dropped]
                 accepted[-1] = (accepted[-1][0], current)
     return {
         "baseline": base_fit,
@@ -1010,7 +1018,7 @@ def forward_select(
         "went_on": went_on,
         "pair_check": pair_check,
         "box": box,
-        "weak_last": weak,
+        "weak_dropped": weak,
         "not_earned": not_earned,
         "phase_taken": phase_taken,
         "work": {"flights": work.flights},

@@ -2,6 +2,8 @@
 
     python benchmarks/bench_truth_vs_fit.py BLIND_OUT [--cases NAME ...] [--draws 20]
         [--record benchmarks/results/truth_vs_fit.json] [--note TEXT]
+    python benchmarks/bench_truth_vs_fit.py WORK --independent NAME ... [--draws 20]
+        [--record benchmarks/results/truth_vs_fit_independent.json]
 
 ``BLIND_OUT`` is the folder of a blind validation run (``python -m bouncelab.gap.blind
 --out BLIND_OUT``: ``runs/``, ``diagnoses/``, ``truth/``, ``scores.json``). For each case
@@ -29,6 +31,14 @@ choices are both scored and the better one taken (``ride_load`` is not a scored
 parameter). Also recorded: the fit steps that make most of the difference (Gamma, the
 per-step gap of each point in floors of that step, its share of the difference).
 
+With ``--independent`` the cases are ``bench_independent.py``'s (the generator that is
+not our rig): each is generated under ``WORK/runs/`` and diagnosed (diagnosis seed 0)
+into ``WORK/diagnoses/``, both reused when there, and its truth is taken in the model's
+conventions (:func:`independent_true_params`: beside an armature, the generator's
+rigid-plate ``e`` is the model's :func:`bouncelab.physics.two_body_restitution`; the
+truth scored at the rigid-plate value itself is 0.2 floors worse per 0.01 of ``e`` on
+``restitution_feedback``, which once read as an objective miss).
+
 Reads the truth, so it is a benchmark of the diagnosis, never part of it.
 """
 
@@ -47,7 +57,7 @@ import numpy as np
 from bouncelab.flights import extract_run
 from bouncelab.gap.fit import DATA_RESOLUTION, fresh_step_gaps, make_problem
 from bouncelab.gap.select import INERT
-from bouncelab.physics.model import EFFECT_ORDER, Model
+from bouncelab.physics.model import EFFECT_ORDER, Model, two_body_restitution
 from bouncelab.runs import load_run
 
 #: Relative parameter error beyond which a case counts as a miss (issue 6's goal).
@@ -83,6 +93,40 @@ def truth_points(diagnosis: dict, true_params: dict) -> tuple[str, list[dict]]:
     if "feedback" not in effects:
         return name, [base]
     return name, [{**base, "ride_load": v} for v in (0.0, 1.0)]
+
+
+def independent_true_params(effects: dict) -> dict:
+    """The independent generator's true effects (``effects`` of its ``.truth.json``:
+    effect -> parameters) in the model's conventions: beside an armature its rigid-plate
+    restitution is the model's two-body ``e`` (:func:`two_body_restitution`)."""
+    true = {eff: dict(ps) for eff, ps in effects.items()}
+    if "restitution" in true and "feedback" in true:
+        r = true["feedback"]["mass_ratio"]
+        true["restitution"]["e"] = two_body_restitution(true["restitution"]["e"], r)
+    return true
+
+
+def independent_case(work: Path, name: str, workers: int) -> tuple[dict, dict]:
+    """``bench_independent.py``'s case ``name`` generated under ``work/runs/`` and
+    diagnosed (seed 0) into ``work/diagnoses/``, each reused when there; returns its
+    true parameters (:func:`independent_true_params`) and the diagnosis's relative
+    parameter errors as ``bench_independent.py`` scores them."""
+    from bench_independent import CASES, score
+    from independent_rig import make_case
+
+    from bouncelab.gap.diagnose import diagnose_run
+
+    run_dir = work / "runs" / name
+    if not (run_dir / "run.yaml").is_file():
+        make_case(run_dir, **CASES[name])
+    diag_path = work / "diagnoses" / f"{name}.json"
+    if not diag_path.is_file():
+        diag_path.parent.mkdir(parents=True, exist_ok=True)
+        diagnosis = diagnose_run(run_dir, workers=workers, progress=False)
+        diag_path.write_text(json.dumps(diagnosis, indent=1) + "\n")
+    truth = json.loads(run_dir.with_name(name + ".truth.json").read_text())
+    errors = score(truth, json.loads(diag_path.read_text()))["param_rel_error"]
+    return independent_true_params(truth["effects"]), errors
 
 
 def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
@@ -155,26 +199,41 @@ def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    p.add_argument("blind_out", help="folder of a blind validation run")
+    p.add_argument("blind_out", help="blind validation run folder (--independent: a work folder)")
     p.add_argument("--cases", nargs="*", help="case names (default: the parameter misses)")
+    p.add_argument(
+        "--independent",
+        nargs="+",
+        metavar="NAME",
+        help="bench_independent.py's cases instead, generated and diagnosed here",
+    )
+    p.add_argument("--workers", type=int, default=2, help="for --independent's diagnoses")
     p.add_argument("--draws", type=int, default=20, help="fresh ensembles per point")
     p.add_argument("--record", help="write the results to this JSON file")
     p.add_argument("--note", default="", help="provenance of BLIND_OUT, kept in the record")
     args = p.parse_args(argv)
     out = Path(args.blind_out)
-    scores = json.loads((out / "scores.json").read_text())
-    names = args.cases or missed_cases(scores)
+    if args.independent:
+        scores = {"cases": {}}
+        names = args.independent
+    else:
+        scores = json.loads((out / "scores.json").read_text())
+        names = args.cases or missed_cases(scores)
     results = {}
     for name in names:
-        if not (out / "diagnoses" / f"{name}.json").is_file():
+        t0 = time.perf_counter()
+        errors = scores["cases"].get(name, {}).get("param_errors")
+        if args.independent:
+            true_params, errors = independent_case(out, name, args.workers)
+        elif not (out / "diagnoses" / f"{name}.json").is_file():
             print(f"{name}: no diagnosis under {out}", file=sys.stderr)
             continue
-        t0 = time.perf_counter()
-        true_params = scores["cases"][name]["true_params"]
+        else:
+            true_params = scores["cases"][name]["true_params"]
         r = compare_case(out, name, true_params, args.draws)
         r["seconds"] = time.perf_counter() - t0
-        r["set"] = scores["cases"][name].get("set")
-        r["param_errors"] = scores["cases"][name]["param_errors"]
+        r["set"] = scores["cases"].get(name, {}).get("set", "independent")
+        r["param_errors"] = errors
         results[name] = r
         largest = ", ".join(
             f"{s['gamma']:.2f} ({s['objective_share']:+.2f})" for s in r["largest_steps"][:3]

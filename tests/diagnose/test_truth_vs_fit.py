@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-from bench_truth_vs_fit import missed_cases, truth_points  # noqa: E402
+from bench_truth_vs_fit import independent_true_params, missed_cases, truth_points  # noqa: E402
 
 
 def test_only_cases_with_a_parameter_beyond_the_goal_are_taken():
@@ -53,3 +53,17 @@ def test_an_armature_is_scored_with_both_ride_load_choices_and_a_missing_effect_
     assert name == "friction+restitution+feedback"
     assert [p["ride_load"] for p in points] == [0.0, 1.0]
     assert all(p["mu"] == 0.29 and p["zeta"] == 0.04 for p in points)
+
+
+def test_the_independent_generators_restitution_is_scored_in_the_models_convention():
+    """Beside an armature the generator's rigid-plate e 0.4 (m/M 0.05) is the model's
+    0.47 (e = e_r (1 + r) + r); without one, and the other parameters, unchanged."""
+    effects = {
+        "restitution": {"e": 0.4},
+        "feedback": {"mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.05},
+    }
+    true = independent_true_params(effects)
+    assert abs(true["restitution"]["e"] - 0.47) < 1e-12
+    assert true["feedback"] == effects["feedback"]
+    assert effects["restitution"]["e"] == 0.4  # the generator's truth is not modified
+    assert independent_true_params({"restitution": {"e": 0.4}}) == {"restitution": {"e": 0.4}}

@@ -96,3 +96,14 @@ def test_rigid_plate_restitution_gives_the_same_impact_in_the_other_convention()
         assert abs(r * (1.0 + e_r) * u - armature) < 1e-12
     assert rigid_plate_restitution(0.515, 0.0) == 0.515
     assert abs(rigid_plate_restitution(0.5707, 0.0448) - 0.5030) < 1e-3
+
+
+def test_two_body_restitution_undoes_the_rigid_plate_one():
+    """Reference: the inverse written out, e = e_r (1 + r) + r; the independent
+    generator's e_r 0.4 beside m/M 0.05 is the model's 0.47."""
+    from bouncelab.physics import rigid_plate_restitution, two_body_restitution
+
+    for e, r in np.random.default_rng(5).uniform([0.0, 0.0], [0.95, 0.5], (50, 2)):
+        assert abs(two_body_restitution(rigid_plate_restitution(e, r), r) - e) < 1e-12
+    assert abs(two_body_restitution(0.4, 0.05) - 0.47) < 1e-12
+    assert two_body_restitution(0.515, 0.0) == 0.515

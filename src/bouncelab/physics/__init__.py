@@ -12,6 +12,7 @@ from bouncelab.physics.model import (
     Model,
     parse_assignments,
     rigid_plate_restitution,
+    two_body_restitution,
 )
 from bouncelab.physics.simulate import (
     FLIGHT_COLUMNS,
@@ -32,4 +33,5 @@ __all__ = [
     "simulate_from",
     "simulate_grid",
     "simulate_protocol",
+    "two_body_restitution",
 ]

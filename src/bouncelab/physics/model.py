@@ -215,6 +215,16 @@ def rigid_plate_restitution(e: float, mass_ratio: float) -> float:
     return (float(e) - float(mass_ratio)) / (1.0 + float(mass_ratio))
 
 
+def two_body_restitution(e_r: float, mass_ratio: float) -> float:
+    """The model's ``e`` for a rigid-plate restitution ``e_r`` beside an armature of mass
+    ratio ``mass_ratio``: the inverse of :func:`rigid_plate_restitution`,
+    ``e = e_r (1 + mass_ratio) + mass_ratio``. Why: a recording made in that other
+    convention is scored against the model in its own; with m/M 0.05 an ``e_r`` of 0.4
+    is the model's 0.47, and 0.01 off in ``e`` costs 0.2 noise floors there
+    (docs/diagnosis-log.md, session 51)."""
+    return float(e_r) * (1.0 + float(mass_ratio)) + float(mass_ratio)
+
+
 def parse_assignments(items: Iterable[str]) -> dict[str, float]:
     """Turn ``["mu=0.29", "e=0.5"]`` into a dict; bad items raise :class:`BouncelabError`."""
     out: dict[str, float] = {}

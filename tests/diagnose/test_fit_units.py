@@ -1453,3 +1453,43 @@ def test_a_round_entered_for_the_phases_takes_the_addition_that_sets_them_right(
     else:
         assert sel["phase_taken"] == [] and sel["stop"] == "no_improvement"
         assert sel["final"].objective == 1.3
+
+
+def test_a_joint_fit_that_moved_the_taken_harmonics_k_is_fitted_again_with_it_held(
+    monkeypatch,
+):
+    """Reference: the independent friction_harmonic_g0-8's shape (docs/diagnosis-log.md,
+    session 51). The harmonic is taken at k 3; friction's joint fit moved it to k 4 at
+    2.96 floors, and is fitted again with k held at 3 (1.0 floors: kept); the
+    miscalibration's kept k 3 and the armature's moved k are not fitted again; a held fit
+    that does worse leaves the first; with no harmonic taken nothing is fitted again."""
+    from bouncelab.gap import select
+
+    calls = []
+
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
+        calls.extend((name, fixed.get("k")) for _p, name, _b, fixed, *_rest in jobs)
+        truth = {"mu": 0.2, "a": 0.05, "k": 3.0, "psi": 1.0}
+        return [scripted_fit(name, truth, held_gap) for _p, name, *_rest in jobs]
+
+    monkeypatch.setattr(select, "fit_many", fake_fit_many)
+    harmonic = {"a": 0.03, "k": 3.0, "psi": 1.5}
+    moved = {"a": 0.03, "k": 4.0, "psi": 6.3}
+    armature = {"mass_ratio": 0.04, "f_ratio": 0.2, "zeta": 0.5, "ride_load": 0.0}
+    tried = [
+        ("friction", scripted_fit("friction+harmonic", {**moved, "mu": 0.23}, 2.96)),
+        ("gamma_scale", scripted_fit("harmonic+gamma_scale", {**harmonic, "s": 0.98}, 3.5)),
+        ("feedback", scripted_fit("harmonic+feedback", {**moved, **armature}, 3.2)),
+    ]
+    job = (None, {}, None, 0)
+    held_gap = 1.0
+    out = dict(select._k_held_again(tried, harmonic, job, None, None, None))
+    assert calls == [("friction+harmonic", 3.0)]
+    assert out["friction"].objective == 1.0 and out["friction"].model.params["k"] == 3.0
+    assert out["gamma_scale"] is tried[1][1] and out["feedback"] is tried[2][1]
+    held_gap = 4.0
+    out = dict(select._k_held_again(tried, harmonic, job, None, None, None))
+    assert out["friction"].model.params["k"] == 4.0
+    calls.clear()
+    assert select._k_held_again(tried, {"mu": 0.2}, job, None, None, None) == tried
+    assert calls == []

@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize
 
+from bouncelab.gap.features import circular_mean, wrap_angle
 from bouncelab.gap.fit import K_CHOICES
 
 #: The harmonics read: the whole-number ``k`` of :data:`bouncelab.gap.fit.K_CHOICES`. Why
@@ -86,16 +87,16 @@ def ride_takeoffs(flights: pd.DataFrame, drive_hz: float) -> pd.DataFrame:
         if len(g) < MIN_TAKEOFFS:
             continue
         phi = g["phi_takeoff"].to_numpy(dtype=float)
-        z = np.mean(np.exp(1j * phi))
-        if abs(z) < MIN_RESULTANT:
+        takeoff, resultant = circular_mean(phi)
+        if resultant < MIN_RESULTANT:
             continue
-        start = phi - 2.0 * math.pi * float(drive_hz) * g["contact_s"].to_numpy()
+        start, _r = circular_mean(phi - 2.0 * math.pi * float(drive_hz) * g["contact_s"].to_numpy())
         rows.append(
             {
                 "step": int(step),
                 "gamma": float(g["gamma"].iloc[0]),
-                "phi_takeoff": float(np.angle(z)) % (2.0 * math.pi),
-                "phi_start": float(np.angle(np.mean(np.exp(1j * start)))) % (2.0 * math.pi),
+                "phi_takeoff": takeoff % (2.0 * math.pi),
+                "phi_start": start % (2.0 * math.pi),
                 "n": int(len(g)),
             }
         )
@@ -127,8 +128,7 @@ def _residuals(points: pd.DataFrame, k: float, a: float, psi: float, mu: float) 
     """Measured minus predicted takeoff phase per step (rad, wrapped to (-pi, pi]); a step
     the prediction never leaves counts as 1 rad."""
     pred = predicted_takeoff(points["gamma"], points["phi_start"], k, a, psi, mu)
-    d = np.angle(np.exp(1j * (points["phi_takeoff"].to_numpy() - pred)))
-    return np.nan_to_num(d, nan=1.0)
+    return np.nan_to_num(wrap_angle(points["phi_takeoff"].to_numpy() - pred), nan=1.0)
 
 
 def _rms(points, k, a, psi, mu) -> float:

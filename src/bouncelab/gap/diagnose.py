@@ -66,6 +66,7 @@ from bouncelab.gap.seeds import (
     seed_warning,
 )
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
+from bouncelab.gap.takeoff_reading import read_plate, seen_harmonic
 from bouncelab.physics import EFFECTS, Model, rigid_plate_restitution
 
 #: A median takeoff-phase offset (model minus data, rad) beyond this after the final model
@@ -401,6 +402,9 @@ def diagnose_flights(
         # the takeoff-phase rule of the verdict, on the selection's current model
         return phase_shift_reason(sharp_phase_offset(problem, _features(problem, model)))
 
+    # the plate's harmonic off the takeoff phases: one more start of the harmonic's fits
+    reading = read_plate(flights, float(run.drive_frequency_hz))
+    harmonic_read = seen_harmonic(reading)
     sel = forward_select(
         problem,
         floor,
@@ -414,6 +418,7 @@ def diagnose_flights(
         progress=progress,
         unsettled=phases_reason,
         interval=lambda fit, prob, i: summary_of(fit, prob, i)["params_ci"],
+        harmonic_read=harmonic_read,
     )
     base_fit: FitResult = sel["baseline"]
     g_base = heldout_gap(base_fit, problem)
@@ -579,6 +584,8 @@ def diagnose_flights(
             **_design(problem, fit_settings, select_settings, baseline, seed, fixed),
             "refine": _refine_design(sel["refined"]),
             "box": sel["box"],
+            # the harmonic read off the takeoff phases that started the harmonic's fits
+            "harmonic_read": harmonic_read,
             # flights the kernels simulated for every fit: the diagnosis's work
             "work": sel["work"],
         },

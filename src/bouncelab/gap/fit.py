@@ -1063,6 +1063,7 @@ def fit_model(
     seed: int = 0,
     pool: EvaluationPool | None = None,
     continuation: bool = False,
+    starts: list[dict] | None = None,
 ) -> FitResult:
     """Refit ``model_name``'s parameters to the run (see the module docstring).
 
@@ -1089,6 +1090,11 @@ def fit_model(
         steps on other orbits (independent case ``friction_harmonic_g0-8``: the
         search over all steps ended at 3.5 floors, the low-Gamma steps alone found a
         point at 0.96). Reported in ``extra["continuation"]``.
+    starts : other starting points (parameter values over ``base``): the search starts
+        from the one of ``base`` and these that does best on the fit steps (one
+        evaluation each; the rest of the initial population is drawn as without them).
+        Forward selection passes the plate's harmonic read off the takeoff phases
+        (:mod:`bouncelab.gap.takeoff_reading`).
 
     Returns
     -------
@@ -1104,6 +1110,13 @@ def fit_model(
     free = joint_choices(free, base or {})
     ev = _Evaluator(problem, model_name, fixed, free, pool)
     x = encode(free, start)
+    if starts:
+        least = ev(x)
+        for more in starts:
+            other = encode(free, {**start, **more})
+            value = ev(other)
+            if value < least:
+                x, least = other, value
     names = [p.name for p in free]
     glob = [i for i, n in enumerate(names) if search is None or n in search]
     # the extra feedback generations shrink on long runs only once the armature has been

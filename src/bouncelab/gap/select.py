@@ -220,7 +220,7 @@ def fit_many(
     jobs: list[tuple], pool=None, progress: bool | None = None, work: WorkTally | None = None
 ) -> list[FitResult]:
     """Run :func:`fit_model` jobs (argument tuples ``(problem, model_name, base, fixed,
-    search, settings, seed)``, optionally followed by ``continuation``) one after
+    search, settings, seed)``, optionally followed by ``continuation`` and ``starts``) one after
     another, each evaluating its populations in ``pool`` when given. Results come back
     in job order and do not depend on the pool. A progress bar is shown on a terminal
     (``progress=None``: when stderr is a TTY). ``work``: the tally their flights are
@@ -245,6 +245,7 @@ def fit_many(
                     seed=seed,
                     pool=pool,
                     continuation=bool(more and more[0]),
+                    starts=more[1] if len(more) > 1 else None,
                 )
             )
             bar.set_postfix_str(name, refresh=False)
@@ -274,7 +275,33 @@ def _discrete_splits(effect: str, fixed: dict, chosen: dict | None = None) -> li
     return [{}]
 
 
-def _k_held_again(tried, prev: dict, job, pool, progress, work: WorkTally):
+def read_starts(read: dict | None, name: str, fixed: dict) -> list[dict]:
+    """Other starts of a fit of model ``name`` with ``fixed`` parameters
+    (:func:`bouncelab.gap.fit.fit_model`'s ``starts``: the search starts from the best on
+    the fit steps) from the harmonic ``read`` off the takeoff phases
+    (:func:`bouncelab.gap.takeoff_reading.seen_harmonic`, None: nothing seen): its ``k, a,
+    psi``, and its ``mu`` where the model has friction, when the model has the harmonic
+    and ``k`` is free or fixed at the read one; else none.
+
+    Why: a global search of a model with a harmonic misses the harmonic's narrow basin
+    on some runs, and the reading finds it without a simulation. On the independent
+    ``friction_harmonic`` at diagnosis seed 1 the selection ended with ``a`` 20 % off at
+    1.87 floors, from the reading at 0.08 floors with ``a, mu, psi`` at the truth; the
+    seed-1 ``restitution_harmonic`` and ``friction_harmonic_g0-8`` needed the retry
+    without it (docs/diagnosis-log.md, sessions 52-53).
+    """
+    model = Model.parse(name)
+    if read is None or "harmonic" not in model.effects:
+        return []
+    if "k" in fixed and float(fixed["k"]) != float(read["k"]):
+        return []
+    start = {p: read[p] for p in ("k", "a", "psi")}
+    if "friction" in model.effects:
+        start["mu"] = read["mu"]
+    return [start]
+
+
+def _k_held_again(tried, prev: dict, job, pool, progress, work: WorkTally, read=None):
     """``tried`` with each joint fit beside a taken harmonic (its ``k`` in ``prev``) that
     moved ``k`` fitted again with the ``k`` taken held, the better on the fit steps kept
     (:func:`_best_of`). ``job``: ``(problem, fixed, fit settings, seed)``. Not the
@@ -286,6 +313,7 @@ def _k_held_again(tried, prev: dict, job, pool, progress, work: WorkTally):
     ``friction_harmonic_g0-8`` took k 3 in round 1 and its joint friction fit ended at
     k 4, unexplained at 3.0 floors (docs/diagnosis-log.md, session 51). Only where ``k``
     moved: fitting every joint fit twice cost 23-59 % more flights (session 50).
+    ``read``: the harmonic read off the takeoff phases (:func:`read_starts`).
     """
     problem, fixed, fit_settings, seed = job
     if "k" not in prev or "k" in fixed:
@@ -307,8 +335,9 @@ def _k_held_again(tried, prev: dict, job, pool, progress, work: WorkTally):
             None,
             fit_settings,
             seed,
-            "feedback" not in f.model.effects,
-        )  # (the rounds' continuation rule)
+            "feedback" not in f.model.effects,  # (the rounds' continuation rule)
+            read_starts(read, f.model.name, {**fixed, "k": k}),
+        )
         for _e, f in moved
     ]
     again = dict(zip([e for e, _f in moved], fit_many(jobs, pool, progress, work), strict=True))
@@ -779,6 +808,7 @@ def forward_select(
     progress: bool | None = None,
     unsettled=None,
     interval=None,
+    harmonic_read: dict | None = None,
 ) -> dict:
     """Forward selection from ``baseline`` over ``candidates`` (see the module docstring).
 
@@ -814,6 +844,10 @@ def forward_select(
         session 26). A spurious effect can sit in the middle of the selection (blind
         ``w_friction_harmonic`` at diagnosis seed 17: harmonic, s 0.995 with interval
         [0.991, 1.003], then friction; session 50).
+    harmonic_read : the plate's harmonic read off the takeoff phases where one stands out
+        (:func:`bouncelab.gap.takeoff_reading.seen_harmonic`: ``k, a, psi, mu``), or None.
+        Every round's fit of a model with the harmonic starts from it where it does
+        better than from the current model (:func:`read_starts`).
 
     Returns
     -------
@@ -904,15 +938,17 @@ def forward_select(
                     # later rounds are joint fits: they search the low-Gamma steps first,
                     # but not with an armature (module docstring)
                     cont = bool(rounds) and "feedback" not in Model.parse(name).effects
+                    fixed_here = {**fixed, **extra}
                     jobs.append(
-                        (problem, name, start, {**fixed, **extra}, None, fit_settings, seed,
-                         cont)
+                        (problem, name, start, fixed_here, None, fit_settings, seed, cont,
+                         read_starts(harmonic_read, name, fixed_here))
                     )  # fmt: skip
             fits = fit_many(jobs, pool, progress, work)
             tried = [(eff, _best_of(eff, owners, fits)) for eff in todo]
             tried = _k_held_again(
-                tried, prev, (problem, fixed, fit_settings, seed), pool, progress, work
-            )
+                tried, prev, (problem, fixed, fit_settings, seed), pool, progress, work,
+                harmonic_read,
+            )  # fmt: skip
             # the other ride_load before the extra seeds: where it settles the run the
             # seeds are skipped (_armature_seeds)
             if last and "ride_load" in round1 and "ride_load" not in fixed:

@@ -63,6 +63,14 @@ def test_a_step_that_leaves_from_two_places_is_not_read():
     assert points["n"].iloc[0] == 7  # the first takeoff has no landing before it
 
 
+def test_a_run_without_phases_has_nothing_to_read():
+    # a run without a drive channel has NaN phases (CONTRACTS.md section 3)
+    table = _table([(1.5, [0.5] * 8), (1.6, [0.6] * 8)])
+    points = ride_takeoffs(table.assign(phi_takeoff=np.nan), 30.0)
+    assert points.empty
+    assert read_takeoffs(points) == {"n_steps": 0}
+
+
 def _read(tmp_path, **case):
     run_dir = tmp_path / "case"
     make_case(run_dir, **case)

@@ -82,8 +82,9 @@ def ride_takeoffs(flights: pd.DataFrame, drive_hz: float) -> pd.DataFrame:
     ``drive_hz``: the drive frequency (Hz).
 
     A ride is the contact between a landing and the next takeoff in the same step, at
-    least :data:`MIN_RIDE_CYCLES` of a cycle long. Returns one row per step with at least
-    :data:`MIN_TAKEOFFS` rides whose takeoff phases gather (:data:`MIN_RESULTANT`):
+    least :data:`MIN_RIDE_CYCLES` of a cycle long, whose takeoff has a phase. Returns one
+    row per step with at least :data:`MIN_TAKEOFFS` rides whose takeoff phases gather
+    (:data:`MIN_RESULTANT`):
     ``step``, ``gamma``, ``phi_takeoff`` (rad in [0, 2 pi), the circular mean),
     ``phi_start`` (rad in [0, 2 pi), the circular mean of the rides' starts), ``n``.
     """
@@ -92,7 +93,9 @@ def ride_takeoffs(flights: pd.DataFrame, drive_hz: float) -> pd.DataFrame:
     contact = (
         f["t_takeoff_s"].to_numpy(dtype=float)[1:] - f["t_landing_s"].to_numpy(dtype=float)[:-1]
     )
-    ride = same & (contact >= MIN_RIDE_CYCLES / float(drive_hz))
+    # no phase without a drive channel (CONTRACTS.md section 3: NaN): nothing to read
+    phased = np.isfinite(f["phi_takeoff"].to_numpy(dtype=float))[1:]
+    ride = same & phased & (contact >= MIN_RIDE_CYCLES / float(drive_hz))
     rides = f.iloc[1:][ride].assign(contact_s=contact[ride])
     rows = []
     for step, g in rides.groupby("step", sort=True):

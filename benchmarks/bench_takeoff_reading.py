@@ -34,6 +34,7 @@ from bouncelab.gap.takeoff_reading import (  # noqa: E402
     SEEN_RATIO,
     read_takeoffs,
     ride_takeoffs,
+    seen_harmonic,
 )
 from bouncelab.runs import load_run  # noqa: E402
 
@@ -41,9 +42,9 @@ OUT = Path(__file__).resolve().parent / "results" / "takeoff_reading.json"
 
 
 def seen(case: dict) -> bool:
-    """Whether the reading's best harmonic stands out (see the summary's ``seen_rule``)."""
-    b = case.get("best")
-    return bool(b) and b["a"] * b["k"] ** 2 >= SEEN_AK2 and case["rms_ratio"] >= SEEN_RATIO
+    """Whether the reading's best harmonic stands out: the diagnosis's rule
+    (:func:`bouncelab.gap.takeoff_reading.seen_harmonic`) on a scored case."""
+    return "best" in case and seen_harmonic(case) is not None
 
 
 def score(truth: dict, reading: dict) -> dict:

@@ -197,6 +197,14 @@ def score(truth: dict, diag: dict) -> dict:
         "not_earned": [n["effect"] for n in diag.get("not_earned", [])],
         # additions taken for the takeoff phases where the flight times gained nothing
         "phase_taken": [n["effect"] for n in diag.get("phase_taken", [])],
+        # a run left unexplained is diagnosed again (docs/diagnosis.md section 1, "Retries"):
+        # each seed's conclusion, so that a run's time shows what its retry cost
+        "retry": [
+            {k: d[k] for k in ("seed", "selected", "unexplained", "final_rel_gap")}
+            for d in (diag.get("retry") or {}).get("diagnoses", [])
+        ],
+        # the harmonic read off the takeoff phases, where it stood out (None: not seen)
+        "harmonic_read": diag["design"].get("harmonic_read"),
     }
 
 

@@ -103,3 +103,27 @@ def test_a_down_sweep_is_diagnosed_like_an_up_sweep(tmp_path):
     assert r["unexplained"] is False
     gammas = r["profile"]["gamma"]
     assert gammas == sorted(gammas) and len(gammas) == len(GAMMAS)
+
+
+def test_a_harmonic_the_takeoffs_refuse_is_reported_and_not_taken(run_dir, monkeypatch):
+    """Truth: friction (mu 0.2). With a judge that refuses every harmonic fit it is shown
+    (JSON ``takeoff_refused`` with its round, and a warning) and friction is still taken;
+    the judge sees harmonics only (``diagnose_flights``' closure)."""
+    from bouncelab.gap import diagnose
+
+    judged = []
+
+    def refuse(points, reading, k, a, psi):
+        judged.append(k)
+        return {"k": float(k), "a": float(a), "psi": float(psi), "rms_rad": 0.3,
+                "plain_rms_rad": 0.01}  # fmt: skip
+
+    monkeypatch.setattr(diagnose, "harmonic_refuted", refuse)
+    r = _diagnose(run_dir, Model.parse("friction", {"mu": 0.2}))
+    assert r["selected"][:1] == ["friction"]
+    assert "harmonic" not in r["selected"]
+    assert judged and r["takeoff_refused"]
+    assert {t["effect"] for t in r["takeoff_refused"]} == {"harmonic"}
+    assert r["takeoff_refused"][0]["round"] == 1
+    assert any("takeoff phases 30 times worse" in w for w in r["warnings"])
+    json.dumps(r, allow_nan=False)

@@ -66,7 +66,12 @@ from bouncelab.gap.seeds import (
     seed_warning,
 )
 from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
-from bouncelab.gap.takeoff_reading import read_plate, seen_harmonic
+from bouncelab.gap.takeoff_reading import (
+    harmonic_refuted,
+    read_takeoffs,
+    ride_takeoffs,
+    seen_harmonic,
+)
 from bouncelab.physics import EFFECTS, Model, rigid_plate_restitution
 
 #: A median takeoff-phase offset (model minus data, rad) beyond this after the final model
@@ -402,9 +407,19 @@ def diagnose_flights(
         # the takeoff-phase rule of the verdict, on the selection's current model
         return phase_shift_reason(sharp_phase_offset(problem, _features(problem, model)))
 
-    # the plate's harmonic off the takeoff phases: one more start of the harmonic's fits
-    reading = read_plate(flights, float(run.drive_frequency_hz))
+    # the plate's harmonic off the takeoff phases: one more start of the harmonic's fits,
+    # and the judge of a fitted harmonic
+    takeoffs = ride_takeoffs(flights, float(run.drive_frequency_hz))
+    reading = read_takeoffs(takeoffs)
     harmonic_read = seen_harmonic(reading)
+
+    def refuted(effect: str, model: Model) -> dict | None:
+        # beside an armature the plate during a ride is not the drive's: not judged
+        if effect != "harmonic" or "feedback" in model.effects:
+            return None
+        p = model.params
+        return harmonic_refuted(takeoffs, reading, p["k"], p["a"], p["psi"])
+
     sel = forward_select(
         problem,
         floor,
@@ -419,6 +434,7 @@ def diagnose_flights(
         unsettled=phases_reason,
         interval=lambda fit, prob, i: summary_of(fit, prob, i)["params_ci"],
         harmonic_read=harmonic_read,
+        refuted=refuted,
     )
     base_fit: FitResult = sel["baseline"]
     g_base = heldout_gap(base_fit, problem)
@@ -495,6 +511,14 @@ def diagnose_flights(
             f"were the effects before it refitted ({ne['without']:.3g} without it)"
         )
 
+    for tr in sel["takeoff_refused"]:
+        warnings.append(
+            f"{tr['effect']} (k = {tr['k']:g}, a = {tr['a']:.3g}) was refused "
+            + (f"in round {tr['round']}" if isinstance(tr["round"], int) else "in the pair check")
+            + f": it fits the takeoff phases {tr['rms_rad'] / tr['plain_rms_rad']:.3g} "
+            "times worse than no harmonic"
+        )
+
     for pt in sel["phase_taken"]:
         warnings.append(
             f"{pt['effect']} was taken for the takeoff phases, not the flight times: "
@@ -560,6 +584,8 @@ def diagnose_flights(
         "not_earned": sel["not_earned"],
         # additions taken because their takeoff phases were right where the model's were not
         "phase_taken": sel["phase_taken"],
+        # harmonics the takeoff phases refused: not proposed in their round
+        "takeoff_refused": sel["takeoff_refused"],
         "rounds": [
             [
                 {

@@ -582,14 +582,16 @@ def _round1_choices(rounds) -> dict:
     }
 
 
-def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
+def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings, refused=None):
     """``(accepted, info, fits)``: the selection with an armature taken alone replaced by
     the pair of other effects that explains the run better, or ``(accepted, None, [])``
     when the selection is not the armature alone.
 
     Every pair of round 1's other candidates is fitted jointly from their round-1 values
     (round 1's ``k``). The pair with the least held-out gap replaces the armature when it
-    beats it by ``margin`` floors and neither of its effects is inert; its effects are
+    beats it by ``margin`` floors and neither of its effects is inert or refused
+    (``refused(effect, fit)``: True where :func:`forward_select`'s ``refuted`` refuses
+    it); its effects are
     ordered by their round-1 gaps, the first one's step being its round-1 fit. ``job``:
     ``(problem, baseline fit, fixed, fit settings, seed)``. ``info``: ``armature`` and
     ``pairs`` (held-out gaps in floors) and ``replaced_by`` (the pair taken, if any);
@@ -636,7 +638,8 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings):
     live = [
         (g, (a, b), f)
         for (a, b), f, g in zip(pairs, fits, gaps, strict=True)
-        if not (is_inert(a, f.model.params) or is_inert(b, f.model.params))
+        if not any(is_inert(e, f.model.params) for e in (a, b))
+        and not (refused is not None and any(refused(e, f) for e in (a, b)))
     ]
     if not live:
         return accepted, info, fits
@@ -809,6 +812,7 @@ def forward_select(
     unsettled=None,
     interval=None,
     harmonic_read: dict | None = None,
+    refuted=None,
 ) -> dict:
     """Forward selection from ``baseline`` over ``candidates`` (see the module docstring).
 
@@ -848,6 +852,15 @@ def forward_select(
         (:func:`bouncelab.gap.takeoff_reading.seen_harmonic`: ``k, a, psi, mu``), or None.
         Every round's fit of a model with the harmonic starts from it where it does
         better than from the current model (:func:`read_starts`).
+    refuted : ``(effect, model) -> dict | None``, what the data beyond the flight times
+        says against an addition (the diagnosis passes the takeoff phases' verdict on a
+        fitted harmonic, :func:`bouncelab.gap.takeoff_reading.harmonic_refuted`). A
+        refused addition is neither proposed nor taken for the phases in its round, the
+        next best being judged in its place, nor one of a pair that replaces an armature
+        taken alone (``takeoff_refused`` in the result: ``round``, 1-based or
+        ``"pair_check"``, the effect and the dict). Why: a harmonic fitted to the flight
+        times can stand in for the armature while the takeoff phases show no such plate
+        (docs/diagnosis.md section 1, "A harmonic the takeoffs refuse").
 
     Returns
     -------
@@ -861,6 +874,7 @@ def forward_select(
     settings, or None), ``went_on`` (the reasons of ``unsettled`` that let the
     selection go on past the floor, one per round), ``not_earned`` and ``phase_taken``
     (additions refused by :func:`earns_place`'s refit, taken for the phases),
+    ``takeoff_refused`` (see ``refuted``),
     ``weak_dropped`` (list of ``{"effect", "param", "interval"}``, see ``interval``) and
     ``work`` (``flights``: what
     every fit simulated, :class:`WorkTally`).
@@ -881,6 +895,16 @@ def forward_select(
         current = base_fit
         effects = list(base_model.effects)
         rounds, accepted, went_on, not_earned, phase_taken = [], [], [], [], []
+        takeoff_refused = []
+
+        def refused(effect: str, fit: FitResult, where: int | str = "pair_check") -> bool:
+            """Whether ``refuted`` refuses ``effect`` as ``fit`` has it (kept in
+            ``takeoff_refused`` with ``where``: the round, or the pair check)."""
+            why = refuted(effect, fit.model) if refuted is not None else None
+            if why is not None:
+                takeoff_refused.append({"round": where, "effect": effect, **why})
+            return why is not None
+
         pair_check, pair_fits = None, []
         pair_job = (problem, base_fit, fixed, fit_settings, seed)
 
@@ -905,7 +929,7 @@ def forward_select(
             if strict and rounds and pair_check is None:
                 # the armature alone would end the selection here: its pairs come first
                 accepted, pair_check, pair_fits = _pair_for_armature(
-                    rounds, accepted, pair_job, pool, progress, floor, settings
+                    rounds, accepted, pair_job, pool, progress, floor, settings, refused
                 )
                 work.add(pair_fits)
                 if pair_check is not None and "replaced_by" in pair_check:
@@ -977,7 +1001,9 @@ def forward_select(
                         current = _pooled_cloud(refit, current)  # the effects taken, better fitted
                         accepted[-1] = (accepted[-1][0], current)
             g_cur = heldout_gap(current, problem)
-            proposal = _proposal(tried, problem, floor, settings.tie)
+            # additions the data beside the flight times refuse are not judged
+            judged = [(e, f) for e, f in tried if not refused(e, f, len(rounds))]
+            proposal = _proposal(judged, problem, floor, settings.tie)
             shrink = settings.strict_shrink if strict else settings.min_shrink
             if proposal is None or not earns_place(
                 heldout_gap(proposal[1], problem), g_cur, floor, settings.margin, shrink
@@ -985,7 +1011,7 @@ def forward_select(
                 pick = None
                 if for_phases:
                     pick = _phase_pick(
-                        tried, problem, floor, settings.explained_ratio, unsettled,
+                        judged, problem, floor, settings.explained_ratio, unsettled,
                         lambda e, f: _without(problem, f, e, fixed, fit_settings, seed, pool, work),
                     )  # fmt: skip
                 if pick is None:
@@ -1022,7 +1048,7 @@ def forward_select(
             current = best
         if pair_check is None:
             accepted, pair_check, pair_fits = _pair_for_armature(
-                rounds, accepted, pair_job, pool, progress, floor, settings
+                rounds, accepted, pair_job, pool, progress, floor, settings, refused
             )
             work.add(pair_fits)
             if pair_check is not None and "replaced_by" in pair_check:
@@ -1101,5 +1127,6 @@ def forward_select(
         "weak_dropped": weak,
         "not_earned": not_earned,
         "phase_taken": phase_taken,
+        "takeoff_refused": takeoff_refused,
         "work": {"flights": work.flights},
     }

@@ -19,9 +19,11 @@ on a run with the armature the reading is not the plate's drive (docs/diagnosis.
 Where a harmonic stands out (:func:`seen_harmonic`), every round's fit of a model with
 the harmonic starts from the reading where it does better than the fit's own start
 (:func:`bouncelab.gap.select.read_starts`): the fits' searches miss the harmonic's
-narrow basin on some runs. The reading is measured beside the truth of the independent
-generator in ``benchmarks/bench_takeoff_reading.py`` (docs/diagnosis-log.md, sessions
-52-53).
+narrow basin on some runs. And a harmonic fitted to the flight times that fits the
+takeoffs much worse than no harmonic at all is refused in its round
+(:func:`harmonic_refuted`): it stands in for another effect. The reading is measured
+beside the truth of the independent generator in ``benchmarks/bench_takeoff_reading.py``
+(docs/diagnosis-log.md, sessions 52-54).
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ import math
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize
+from scipy.optimize import minimize, minimize_scalar
 
 from bouncelab.gap.features import circular_mean, wrap_angle
 from bouncelab.gap.fit import K_CHOICES
@@ -68,6 +70,12 @@ PHASE_GRID = np.linspace(0.0, 2.0 * math.pi, 361)
 #: a k^2 0.20 at a ratio of 6).
 SEEN_AK2 = 0.03
 SEEN_RATIO = 10.0
+#: A fitted harmonic the takeoffs refuse: with ``mu`` refitted it fits them this many times
+#: worse (rms) than no harmonic at all (:func:`harmonic_refuted`). Measured on the
+#: independent cases' recorded fits (session 54): the true whole-k harmonics 0.01-0.35 of
+#: the plain fit's rms (a Gamma miscalibration beside one the 0.35), the k-2 harmonic
+#: selected in place of ``friction_feedback``'s armature (a k^2 0.10) 6.8.
+REFUTED_RATIO = 2.0
 #: Starting grid of the harmonic's strength ``a k^2`` (its share of the plate's
 #: acceleration) and its phase.
 A_K2_STARTS = np.linspace(0.02, 0.4, 10)
@@ -228,6 +236,38 @@ def seen_harmonic(reading: dict) -> dict | None:
     return {name: float(best[name]) for name in ("k", "a", "psi", "mu")}
 
 
-def read_plate(flights: pd.DataFrame, drive_hz: float) -> dict:
-    """:func:`read_takeoffs` of :func:`ride_takeoffs` of a run's ``flights`` (see there)."""
-    return read_takeoffs(ride_takeoffs(flights, drive_hz))
+def takeoff_rms(points: pd.DataFrame, k: float, a: float, psi: float) -> float:
+    """rms (rad) of the takeoff phases of ``points`` (:func:`ride_takeoffs`) about the
+    prediction of a plate with the harmonic ``k, a, psi``, with ``mu`` refitted (the best
+    of :data:`MU_STARTS`, then a bounded search within one grid spacing of it)."""
+    _r, mu0 = min((_rms(points, k, a, psi, mu), mu) for mu in MU_STARTS)
+    step = float(MU_STARTS[1] - MU_STARTS[0])
+    sol = minimize_scalar(
+        lambda mu: _rms(points, k, a, psi, mu),
+        bounds=(max(MU_STARTS[0], mu0 - step), min(MU_STARTS[-1], mu0 + step)),
+        method="bounded",
+        options={"xatol": 1e-6},
+    )
+    return float(min(_r, sol.fun))
+
+
+def harmonic_refuted(points: pd.DataFrame, reading: dict, k: float, a: float, psi: float):
+    """Whether the takeoff phases refuse a fitted harmonic ``k, a, psi``: it fits them
+    :data:`REFUTED_RATIO` times worse than no harmonic (:func:`takeoff_rms` against the
+    ``plain`` fit of ``reading``, :func:`read_takeoffs` of ``points``). Returns
+    ``{"k", "a", "psi", "rms_rad", "plain_rms_rad"}`` where it does; None where it does
+    not, where nothing was read (fewer than :data:`MIN_STEPS` steps), and for a ``k`` the
+    reading cannot judge (not in :data:`READ_K`).
+
+    Why: a harmonic fitted to the flight times can stand in for another effect (the
+    independent ``friction_feedback``: a k-2 harmonic of a k^2 0.10 in the armature's
+    place, explained at 0.45 floors), but a plate that moved so would move every ride's
+    takeoff, and the takeoffs show no such move.
+    """
+    if "plain" not in reading or float(k) not in READ_K:
+        return None
+    plain = float(reading["plain"]["rms_rad"])
+    rms = takeoff_rms(points, float(k), float(a), float(psi))
+    if rms <= REFUTED_RATIO * plain:
+        return None
+    return {"k": float(k), "a": float(a), "psi": float(psi), "rms_rad": rms, "plain_rms_rad": plain}

@@ -591,10 +591,10 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings, r
     (round 1's ``k``). The pair with the least held-out gap replaces the armature when it
     beats it by ``margin`` floors and neither of its effects is inert or refused
     (``refused(effect, fit)``: True where :func:`forward_select`'s ``refuted`` refuses
-    it); its effects are
-    ordered by their round-1 gaps, the first one's step being its round-1 fit. ``job``:
-    ``(problem, baseline fit, fixed, fit settings, seed)``. ``info``: ``armature`` and
-    ``pairs`` (held-out gaps in floors) and ``replaced_by`` (the pair taken, if any);
+    it); its effects are ordered by their round-1 gaps, the first one's step being its
+    round-1 fit. ``job``: ``(problem, baseline fit, fixed, fit settings, seed)``.
+    ``info``: ``armature`` and ``pairs`` (held-out gaps in floors) and ``replaced_by``
+    (the pair taken, if any);
     ``fits``: the pairs' fits (their cost counts in the refinement's budget).
 
     Why: forward selection adds one effect at a time, and the armature is the one effect

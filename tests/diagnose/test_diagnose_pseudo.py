@@ -107,8 +107,9 @@ def test_a_down_sweep_is_diagnosed_like_an_up_sweep(tmp_path):
 
 def test_a_harmonic_the_takeoffs_refuse_is_reported_and_not_taken(run_dir, monkeypatch):
     """Truth: friction (mu 0.2). With a judge that refuses every harmonic fit it is shown
-    (JSON ``takeoff_refused`` with its round, and a warning) and friction is still taken;
-    the judge sees harmonics only (``diagnose_flights``' closure)."""
+    (JSON ``takeoff_refused`` with its round; a warning for each one that would have been
+    proposed, none for the others) and friction is still taken; the judge sees harmonics
+    only (``diagnose_flights``' closure)."""
     from bouncelab.gap import diagnose
 
     judged = []
@@ -125,5 +126,6 @@ def test_a_harmonic_the_takeoffs_refuse_is_reported_and_not_taken(run_dir, monke
     assert judged and r["takeoff_refused"]
     assert {t["effect"] for t in r["takeoff_refused"]} == {"harmonic"}
     assert r["takeoff_refused"][0]["round"] == 1
-    assert any("takeoff phases 30 times worse" in w for w in r["warnings"])
+    warned = [w for w in r["warnings"] if "takeoff phases 30 times worse" in w]
+    assert len(warned) == sum(t["proposed"] for t in r["takeoff_refused"])
     json.dumps(r, allow_nan=False)

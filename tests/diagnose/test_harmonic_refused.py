@@ -100,9 +100,10 @@ def test_a_refused_harmonic_is_not_proposed_and_the_next_best_is_judged(monkeypa
     kw = dict(candidates=["harmonic", "feedback"], settings=select.SelectSettings(max_effects=1))
     sel = select.forward_select(_OneStepProblem(), 1.0, refuted=refuted, **kw)
     assert [e for e, _f in sel["accepted"]] == ["feedback"]
+    # the round would have proposed it: kept as proposed (the diagnosis warns of it)
     assert sel["takeoff_refused"] == [
-        {"round": 1, "effect": "harmonic", "k": 2.0, "a": 0.02, "psi": 3.0, "rms_rad": 0.2,
-         "plain_rms_rad": 0.01}
+        {"round": 1, "effect": "harmonic", "model": "harmonic", "proposed": True, "k": 2.0,
+         "a": 0.02, "psi": 3.0, "rms_rad": 0.2, "plain_rms_rad": 0.01}
     ]  # fmt: skip
     assert sorted(seen) == ["feedback", "harmonic"]
     # without the judge the harmonic is taken
@@ -132,4 +133,27 @@ def test_a_pair_with_a_refused_harmonic_does_not_replace_an_armature_taken_alone
     sel = select.forward_select(_OneStepProblem(), 1.0, refuted=refuted, **kw)
     assert [e for e, _f in sel["accepted"]] == ["feedback"]
     assert "replaced_by" not in sel["pair_check"]
-    assert {"round": "pair_check", "effect": "harmonic", **why} in sel["takeoff_refused"]
+    assert sel["pair_check"]["refused_pair"] == "friction+harmonic"
+    pair = [t for t in sel["takeoff_refused"] if t["round"] == "pair_check"]
+    assert pair == [{"round": "pair_check", "effect": "harmonic", "model": "friction+harmonic",
+                     "proposed": True, **why}]  # fmt: skip
+    # round 1's harmonic (4 floors) trailed the armature (0.9): refused, not proposed
+    (first,) = [t for t in sel["takeoff_refused"] if t["round"] == 1]
+    assert first["proposed"] is False
+
+
+def test_a_refused_harmonic_that_would_not_be_proposed_is_marked_so(monkeypatch):
+    """Reference: a scripted selection. Round 1: friction the least (2 floors), the
+    harmonic next (3). Refused or not, friction is proposed: the refusal changed nothing
+    (``proposed`` False, no warning in the diagnosis)."""
+    gaps = {"ideal": 10.0, "friction": 2.0, "harmonic": 3.0}
+    params = {"harmonic": {"k": 2.0, "a": 0.02, "psi": 3.0}}
+    script_selection(monkeypatch, table_fit_many(gaps, params))
+    why = {"k": 2.0, "a": 0.02, "psi": 3.0, "rms_rad": 0.2, "plain_rms_rad": 0.01}
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["friction", "harmonic"],
+        settings=select.SelectSettings(max_effects=1),
+        refuted=lambda e, m: why if e == "harmonic" else None,
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["friction"]
+    assert [t["proposed"] for t in sel["takeoff_refused"]] == [False]

@@ -512,6 +512,8 @@ def diagnose_flights(
         )
 
     for tr in sel["takeoff_refused"]:
+        if not tr["proposed"]:
+            continue  # a harmonic no round or pair would have taken: in the JSON only
         warnings.append(
             f"{tr['effect']} (k = {tr['k']:g}, a = {tr['a']:.3g}) was refused "
             + (f"in round {tr['round']}" if isinstance(tr["round"], int) else "in the pair check")

@@ -639,8 +639,13 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings, r
         (g, (a, b), f)
         for (a, b), f, g in zip(pairs, fits, gaps, strict=True)
         if not any(is_inert(e, f.model.params) for e in (a, b))
-        and not (refused is not None and any(refused(e, f) for e in (a, b)))
     ]
+    allowed = [r for r in live if not (refused is not None and any(refused(e, r[2]) for e in r[1]))]
+    if len(allowed) < len(live):
+        g0, _pair, f0 = min(live, key=lambda r: (r[0], r[1]))
+        if g_arm - g0 >= settings.margin * floor and all(f0 is not r[2] for r in allowed):
+            info["refused_pair"] = f0.model.name  # would have replaced the armature
+    live = allowed
     if not live:
         return accepted, info, fits
     g_pair, (a, b), fit = min(live, key=lambda r: (r[0], r[1]))
@@ -858,9 +863,11 @@ def forward_select(
         refused addition is neither proposed nor taken for the phases in its round, the
         next best being judged in its place, nor one of a pair that replaces an armature
         taken alone (``takeoff_refused`` in the result: ``round``, 1-based or
-        ``"pair_check"``, the effect and the dict). Why: a harmonic fitted to the flight
-        times can stand in for the armature while the takeoff phases show no such plate
-        (docs/diagnosis.md section 1, "A harmonic the takeoffs refuse").
+        ``"pair_check"``, the effect, the fit's ``model``, ``proposed``: whether it would
+        have been proposed, or its pair taken, without the refusal, and the dict). Why: a
+        harmonic fitted to the flight times can stand in for the armature while the
+        takeoff phases show no such plate (docs/diagnosis.md section 1, "A harmonic the
+        takeoffs refuse").
 
     Returns
     -------
@@ -902,8 +909,17 @@ def forward_select(
             ``takeoff_refused`` with ``where``: the round, or the pair check)."""
             why = refuted(effect, fit.model) if refuted is not None else None
             if why is not None:
-                takeoff_refused.append({"round": where, "effect": effect, **why})
+                takeoff_refused.append(
+                    {"round": where, "effect": effect, "model": fit.model.name, **why}
+                )
             return why is not None
+
+        def mark_proposed(where, proposed_model: str | None) -> None:
+            """``proposed`` on the refusals of ``where``: whether the refused fit would have
+            been taken or proposed without the refusal (the diagnosis warns of those)."""
+            for entry in takeoff_refused:
+                if entry["round"] == where:
+                    entry["proposed"] = entry["model"] == proposed_model
 
         pair_check, pair_fits = None, []
         pair_job = (problem, base_fit, fixed, fit_settings, seed)
@@ -931,6 +947,7 @@ def forward_select(
                 accepted, pair_check, pair_fits = _pair_for_armature(
                     rounds, accepted, pair_job, pool, progress, floor, settings, refused
                 )
+                mark_proposed("pair_check", (pair_check or {}).get("refused_pair"))
                 work.add(pair_fits)
                 if pair_check is not None and "replaced_by" in pair_check:
                     effects = [*base_model.effects, *pair_check["replaced_by"]]
@@ -1004,6 +1021,9 @@ def forward_select(
             # additions the data beside the flight times refuse are not judged
             judged = [(e, f) for e, f in tried if not refused(e, f, len(rounds))]
             proposal = _proposal(judged, problem, floor, settings.tie)
+            if len(judged) < len(tried):
+                unjudged = _proposal(tried, problem, floor, settings.tie)
+                mark_proposed(len(rounds), unjudged[1].model.name if unjudged else None)
             shrink = settings.strict_shrink if strict else settings.min_shrink
             if proposal is None or not earns_place(
                 heldout_gap(proposal[1], problem), g_cur, floor, settings.margin, shrink
@@ -1050,6 +1070,7 @@ def forward_select(
             accepted, pair_check, pair_fits = _pair_for_armature(
                 rounds, accepted, pair_job, pool, progress, floor, settings, refused
             )
+            mark_proposed("pair_check", (pair_check or {}).get("refused_pair"))
             work.add(pair_fits)
             if pair_check is not None and "replaced_by" in pair_check:
                 current = accepted[-1][1]

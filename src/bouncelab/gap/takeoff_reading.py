@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import minimize
 
 from bouncelab.gap.features import circular_mean, wrap_angle
 from bouncelab.gap.fit import K_CHOICES
@@ -158,6 +158,25 @@ def _rms(points, k, a, psi, mu) -> float:
     return float(np.sqrt(np.mean(_residuals(points, k, a, psi, mu) ** 2)))
 
 
+def fit_mu(points: pd.DataFrame, k: float, a: float, psi: float) -> tuple[float, float]:
+    """``(mu, rms)``: the friction that best fits the takeoff phases of ``points``
+    (:func:`ride_takeoffs`) with the harmonic ``k, a, psi`` held, and the rms (rad) there.
+    The best of :data:`MU_STARTS`, then Nelder-Mead within ``[-0.5, 1]``.
+
+    Why the grid first: a step the plate never releases counts 1 rad, and those plateaus
+    stop a simplex started far off (independent ``gamma_scale_40hz_short_steps``: stuck at
+    61 times the harmonic fit's rms)."""
+    _r, mu0 = min((_rms(points, k, a, psi, mu), mu) for mu in MU_STARTS)
+    sol = minimize(
+        lambda x: _rms(points, k, a, psi, x[0]),
+        [mu0],
+        method="Nelder-Mead",
+        bounds=[(-0.5, 1.0)],
+        options={"xatol": 1e-5, "fatol": 1e-9},
+    )
+    return float(sol.x[0]), float(sol.fun)
+
+
 def read_takeoffs(points: pd.DataFrame, k_choices=READ_K) -> dict:
     """Fit the takeoff condition to the steps of :func:`ride_takeoffs`.
 
@@ -174,18 +193,7 @@ def read_takeoffs(points: pd.DataFrame, k_choices=READ_K) -> dict:
     n = len(points)
     if n < MIN_STEPS:
         return {"n_steps": n}
-    # mu alone from the best of a grid: a step the plate never releases counts 1 rad, and
-    # those plateaus stop a simplex started far off (independent
-    # gamma_scale_40hz_short_steps: stuck at 61 times the harmonic fit's rms)
-    _r, mu0 = min((_rms(points, 1.0, 0.0, 0.0, mu), mu) for mu in MU_STARTS)
-    plain = minimize(
-        lambda x: _rms(points, 1.0, 0.0, 0.0, x[0]),
-        [mu0],
-        method="Nelder-Mead",
-        bounds=[(-0.5, 1.0)],
-        options={"xatol": 1e-5, "fatol": 1e-9},
-    )
-    mu_plain = float(plain.x[0])
+    mu_plain, rms_plain = fit_mu(points, 1.0, 0.0, 0.0)
     by_k = []
     for k in k_choices:
         starts = [
@@ -202,12 +210,12 @@ def read_takeoffs(points: pd.DataFrame, k_choices=READ_K) -> dict:
             options={"xatol": 1e-5, "fatol": 1e-9, "maxiter": 800},
         )
         a, psi, mu = (float(v) for v in sol.x)
-        if sol.fun > plain.fun:
+        if sol.fun > rms_plain:
             # a simplex stuck on a plateau (a step the plate never releases counts 1 rad):
             # no harmonic at all fits better (independent restitution_gamma_scale: 8 times
             # the plain fit's rms); a start there instead reads the true harmonics worse
             # (6 of 11 independent harmonics' a within 10 % for 7)
-            a, psi, mu, sol.fun = 0.0, 0.0, mu_plain, plain.fun
+            a, psi, mu, sol.fun = 0.0, 0.0, mu_plain, rms_plain
         by_k.append(
             {
                 "k": float(k),
@@ -219,7 +227,7 @@ def read_takeoffs(points: pd.DataFrame, k_choices=READ_K) -> dict:
         )
     return {
         "n_steps": n,
-        "plain": {"mu": mu_plain, "rms_rad": float(plain.fun)},
+        "plain": {"mu": mu_plain, "rms_rad": rms_plain},
         "by_k": by_k,
         "best": min(by_k, key=lambda r: r["rms_rad"]),
     }
@@ -238,17 +246,9 @@ def seen_harmonic(reading: dict) -> dict | None:
 
 def takeoff_rms(points: pd.DataFrame, k: float, a: float, psi: float) -> float:
     """rms (rad) of the takeoff phases of ``points`` (:func:`ride_takeoffs`) about the
-    prediction of a plate with the harmonic ``k, a, psi``, with ``mu`` refitted (the best
-    of :data:`MU_STARTS`, then a bounded search within one grid spacing of it)."""
-    _r, mu0 = min((_rms(points, k, a, psi, mu), mu) for mu in MU_STARTS)
-    step = float(MU_STARTS[1] - MU_STARTS[0])
-    sol = minimize_scalar(
-        lambda mu: _rms(points, k, a, psi, mu),
-        bounds=(max(MU_STARTS[0], mu0 - step), min(MU_STARTS[-1], mu0 + step)),
-        method="bounded",
-        options={"xatol": 1e-6},
-    )
-    return float(min(_r, sol.fun))
+    prediction of a plate with the harmonic ``k, a, psi``, with ``mu`` refitted
+    (:func:`fit_mu`)."""
+    return fit_mu(points, k, a, psi)[1]
 
 
 def harmonic_refuted(points: pd.DataFrame, reading: dict, k: float, a: float, psi: float):

@@ -154,7 +154,8 @@ def test_poorly_identified_warns_on_wide_intervals_only():
 
 def test_warnings_on_bound_and_trade_off():
     """mu at its lower bound 0 is reported; two parameters moving together across
-    bootstrap refits (correlation 1) are reported as trading off."""
+    bootstrap refits (correlation 1) are reported as trading off, once the refits take
+    three distinct points (two always line up)."""
     fit = _fake_fit([[0.0, 1.0], [0.3, 1.1]], [[0.1, 0.1], [0.5, 0.5]], names=("mu", "s"))
     boot = np.array([[0.0, 1.0], [0.1, 1.05], [0.2, 1.1], [0.3, 1.15]])
     w = fit_warnings(fit, boot)
@@ -162,6 +163,11 @@ def test_warnings_on_bound_and_trade_off():
     assert any("trade off" in x for x in w)
     still = np.tile([0.1, 1.0], (4, 1))  # no spread: nothing can trade off
     assert fit_warnings(fit, still) == [x for x in w if "bound" in x]
+    # refits that took two evaluated points line up whatever the objective: not read
+    two = np.array([[0.0, 1.0], [0.3, 1.15], [0.0, 1.0], [0.3, 1.15]])
+    assert fit_warnings(fit, two) == [x for x in w if "bound" in x]
+    three = np.vstack([two, [0.1, 1.05]])
+    assert any("trade off" in x for x in fit_warnings(fit, three))
 
 
 def test_read_calibration(tmp_path):

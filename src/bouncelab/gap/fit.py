@@ -76,6 +76,12 @@ BOUND_SHARE = 0.01
 #: |correlation| across bootstrap refits above which two parameters are said to trade off.
 TRADE_OFF_CORR = 0.9
 
+#: Distinct ``(a, b)`` values the bootstrap refits of two parameters must take before
+#: their correlation is read: refits drawn from two evaluated points correlate +-1
+#: whatever the objective (a 60 Hz harmonic's ``a`` and ``psi``, docs/diagnosis-log.md,
+#: session 55).
+TRADE_OFF_MIN_POINTS = 3
+
 #: Smallest per-step noise floor of the diagnosis (rad). The data floor of a periodic step
 #: is about 0; the virtual rig's null runs (compliant contact, sensor chain) differ from
 #: the ideal model by up to 0.03 rad on locked orbits, a model error no effect should be
@@ -1543,7 +1549,8 @@ def fit_warnings(fit: FitResult, boot: np.ndarray) -> list[str]:
     On a bound: within :data:`BOUND_SHARE` of the range from a bound of
     :data:`bouncelab.physics.EFFECTS` (periodic and discrete parameters excepted). Trade
     off: |Pearson correlation| of two parameters across the bootstrap refits above
-    :data:`TRADE_OFF_CORR`.
+    :data:`TRADE_OFF_CORR`, read where the refits take at least
+    :data:`TRADE_OFF_MIN_POINTS` distinct pairs of values (two points always line up).
     """
     out = []
     for p in fit.free:
@@ -1560,7 +1567,8 @@ def fit_warnings(fit: FitResult, boot: np.ndarray) -> list[str]:
         sd = boot.std(axis=0)
         for i in range(n):
             for j in range(i + 1, n):
-                if sd[i] > 0 and sd[j] > 0:
+                distinct = len(np.unique(boot[:, [i, j]], axis=0))
+                if sd[i] > 0 and sd[j] > 0 and distinct >= TRADE_OFF_MIN_POINTS:
                     # a spread of rounding size can still be 0 to corrcoef: NaN, no warning
                     with np.errstate(invalid="ignore", divide="ignore"):
                         r = float(np.corrcoef(boot[:, i], boot[:, j])[0, 1])

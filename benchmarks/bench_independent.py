@@ -145,6 +145,13 @@ CASES = {
     "vibration": {"vib_rms": 2e-5, "seed": 73},
     "vibration_27hz": {"f": 27.0, "vib_rms": 3e-5, "g0": 0.5, "g1": 4.5, "dg": 0.1, "seed": 74},
     "friction_delay": {"mu": 0.2, "delay_s": 0.001, "seed": 106},
+    # protocols a lab may run that none above does: the steps in a random order (no state
+    # carried from a neighbouring Gamma), a Gamma range never stepped, a fast and a slow
+    # drive (session 55)
+    "friction_shuffled": {"mu": 0.2, "shuffled": True, "seed": 201},
+    "restitution_gamma_gap": {"e": 0.4, "skip_lo": 1.5, "skip_hi": 2.55, "seed": 202},
+    "harmonic_60hz": {"f": 60.0, "g1": 5.0, "a": 0.06, "k": 2.0, "psi": 1.5, "seed": 203},
+    "friction_12hz": {"f": 12.0, "mu": 0.25, "step_s": 4.0, "seed": 204},
 }  # fmt: skip
 
 

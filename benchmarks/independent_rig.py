@@ -13,6 +13,8 @@ what the diagnosis assumes of our rig shows up:
   puts the steps off the drive cycles); swept up, down, or up and back down
   (``up_down``: every Gamma but the top one twice, on both branches of a hysteresis);
   steps of one length, or of lengths within ``step_jitter`` of it (a hand-stepped sweep);
+  or in a random order (``shuffled``), or with a Gamma range never stepped
+  (``skip_lo`` to ``skip_hi``: a gap in the data, CONTRACTS.md section 1);
 - a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
 - the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV;
 - outside the library: a sensor delay, a restitution that changes with impact speed,
@@ -179,10 +181,14 @@ def make_case(out: Path, **opt) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     w = 2.0 * math.pi * o["f"]
     gammas = np.round(np.arange(o["g0"], o["g1"] + 1e-9, o["dg"]), 6)
+    if o["skip_hi"] > o["skip_lo"]:  # a Gamma range never stepped: a gap in the data
+        gammas = gammas[(gammas < o["skip_lo"]) | (gammas > o["skip_hi"])]
     if o["up_down"]:  # up, then down again: every Gamma but the top twice, as labs sweep
         gammas = np.concatenate([gammas, gammas[-2::-1]])
     elif o["descending"]:  # swept down: the other branch of every hysteresis loop
         gammas = gammas[::-1]
+    elif o["shuffled"]:  # the steps in a random order, as a lab randomises its protocol
+        gammas = np.random.default_rng([o["seed"], 5]).permutation(gammas)
     if o["step_jitter"]:  # stepped by hand: each length within +- step_jitter of step_s
         # (a stream of its own, so that the recording's noise stays the seed's)
         share = np.random.default_rng([o["seed"], 3]).uniform(-1.0, 1.0, gammas.size)
@@ -300,7 +306,8 @@ DEFAULTS = {
     "contact_high": False, "format": "wav", "seed": 1, "dt": 2e-6,
     "descending": False, "up_down": False, "no_drive": False,
     "e_slope": 0.0, "e_ref_v": 0.3, "vib_rms": 0.0,
-    "lost_contacts": 0.0, "gamma_read_sd": 0.0,
+    "lost_contacts": 0.0, "gamma_read_sd": 0.0, "shuffled": False, "skip_lo": 0.0,
+    "skip_hi": 0.0,
 }  # fmt: skip
 
 

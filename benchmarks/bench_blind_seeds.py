@@ -11,7 +11,9 @@ record (``benchmarks/results/blind_validation.json``, seed 0) cannot rank two ve
 the code on it. This benchmark runs the blind harness (:func:`bouncelab.gap.blind.run_blind`)
 on the same cases with several diagnosis seeds and records, per case, how often the set
 is right, how often the verdict is right (the right set and explained, or flagged for an
-out-of-library case), and the largest parameter error of each seed.
+out-of-library case), and the largest parameter error of each seed; and, since each
+diagnosis retries an unexplained run with the next seed, what each retried seed
+concluded and how many verdicts the retry turned right.
 
 Default cases: the combinations, where session 20 saw the seed move the answer. Layout of
 ``OUT``: one blind output folder per seed (``seed<N>/``), reused when present, so a seed
@@ -57,12 +59,30 @@ def max_param_error(score: dict) -> float | None:
     return max(errs) if errs else None
 
 
-def seeds_record(per_seed: dict[int, dict], reused: dict[int, set] | None = None) -> dict:
+def retried(diagnosis: dict) -> list[dict]:
+    """What each seed of a diagnosis's retry concluded (docs/diagnosis.md section 1,
+    "Retries of an unexplained run"): ``[{seed, selected, unexplained, final_rel_gap}]``,
+    empty when the first diagnosis was not retried."""
+    return [
+        {k: d[k] for k in ("seed", "selected", "unexplained", "final_rel_gap")}
+        for d in (diagnosis.get("retry") or {}).get("diagnoses", [])
+    ]
+
+
+def seeds_record(
+    per_seed: dict[int, dict],
+    reused: dict[int, set] | None = None,
+    retries: dict[int, dict[str, list]] | None = None,
+) -> dict:
     """Per case and seed: the selection, ``set_right``, ``verdict_right``,
     ``max_param_error``, ``diagnose_s`` (None where the diagnosis was ``reused``: seed ->
-    case names read from an earlier run); per case the counts over seeds; overall the
-    counts."""
+    case names read from an earlier run), ``retry`` (seed -> case name -> :func:`retried`)
+    and ``verdict_right_first``, the verdict of the first diagnosis alone (a retried one
+    was unexplained: right only for an out-of-library case); per case the counts over
+    seeds; overall the counts, and how many runs were retried and how many of those the
+    retry turned to a right verdict (``rescued``)."""
     reused = reused or {}
+    retries = retries or {}
     names = sorted({n for res in per_seed.values() for n in res["cases"]})
     cases = {}
     for name in names:
@@ -81,7 +101,12 @@ def seeds_record(per_seed: dict[int, dict], reused: dict[int, set] | None = None
                 "diagnose_s": None
                 if name in reused.get(seed, ())
                 else res.get("timings", {}).get(name, {}).get("diagnose_s"),
+                "retry": retries.get(seed, {}).get(name, []),
             }
+            row = rows[str(seed)]
+            row["verdict_right_first"] = (
+                sc["kind"] == "outside" if row["retry"] else row["verdict_right"]
+            )
         n = len(rows)
         cases[name] = {
             "true": per_seed[next(iter(per_seed))]["cases"][name]["true"],
@@ -93,6 +118,11 @@ def seeds_record(per_seed: dict[int, dict], reused: dict[int, set] | None = None
                 r["max_param_error"] is not None and r["max_param_error"] <= 0.15
                 for r in rows.values()
             ),
+            "verdict_right_first": sum(r["verdict_right_first"] for r in rows.values()),
+            "retried": sum(bool(r["retry"]) for r in rows.values()),
+            "rescued": sum(
+                r["verdict_right"] and not r["verdict_right_first"] for r in rows.values()
+            ),
         }
     total = sum(c["n_seeds"] for c in cases.values())
     return {
@@ -103,6 +133,9 @@ def seeds_record(per_seed: dict[int, dict], reused: dict[int, set] | None = None
             "set_right": sum(c["set_right"] for c in cases.values()),
             "verdict_right": sum(c["verdict_right"] for c in cases.values()),
             "params_within_15pc": sum(c["params_within_15pc"] for c in cases.values()),
+            "verdict_right_first": sum(c["verdict_right_first"] for c in cases.values()),
+            "retried": sum(c["retried"] for c in cases.values()),
+            "rescued": sum(c["rescued"] for c in cases.values()),
         },
     }
 
@@ -123,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print(f"error: {args.cases}: no case named {sorted(missing)}", file=sys.stderr)
         return 2
-    per_seed, reused = {}, {}
+    per_seed, reused, retries = {}, {}, {}
     for seed in args.seeds:
         print(f"--- diagnosis seed {seed}", flush=True)
         out = Path(args.out) / f"seed{seed}"
@@ -131,7 +164,12 @@ def main(argv: list[str] | None = None) -> int:
             c["name"] for c in cases if (out / "diagnoses" / f"{c['name']}.json").is_file()
         }
         per_seed[seed] = run_blind(cases, out, seed=seed, workers=args.workers)
-    record = seeds_record(per_seed, reused)
+        retries[seed] = {
+            c["name"]: retried(json.loads((out / "diagnoses" / f"{c['name']}.json").read_text()))
+            for c in cases
+            if (out / "diagnoses" / f"{c['name']}.json").is_file()
+        }
+    record = seeds_record(per_seed, reused, retries)
     record["machine"] = {"python": platform.python_version(), "processor": platform.machine()}
     record["note"] = args.note
     print(f"{'case':24s} {'set right':>10s} {'verdict':>8s} {'params':>7s}  per seed")
@@ -150,6 +188,10 @@ def main(argv: list[str] | None = None) -> int:
         f"{s['verdict_right']}/{s['case_runs']}, parameters within 15 % "
         f"{s['params_within_15pc']}/{s['case_runs']}  (R: right and explained, s: right "
         "set but unexplained, -: wrong set)"
+    )
+    print(
+        f"retried {s['retried']}/{s['case_runs']}, the retry turned {s['rescued']} right "
+        f"(the first diagnoses alone: {s['verdict_right_first']}/{s['case_runs']} verdicts)"
     )
     if args.record:
         Path(args.record).write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")

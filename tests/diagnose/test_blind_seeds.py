@@ -46,5 +46,33 @@ def test_the_record_counts_per_case_and_leaves_reused_times_out():
     assert case["seeds"]["0"]["diagnose_s"] == 12.0 and case["seeds"]["1"]["diagnose_s"] is None
     assert rec["summary"] == {
         "seeds": [0, 1], "case_runs": 2, "set_right": 1, "verdict_right": 1,
-        "params_within_15pc": 1,
+        "params_within_15pc": 1, "verdict_right_first": 1, "retried": 0, "rescued": 0,
     }  # fmt: skip
+
+
+def test_the_record_counts_what_the_retry_turned():
+    """Three seeds of one combination: seed 0 right at once; seed 1 unexplained, its
+    retry right (rescued); seed 2 retried to no avail. And an out-of-library case
+    retried: flagged by its first diagnosis already, so nothing rescued."""
+    right = score(["friction", "feedback"], ["friction", "feedback"])
+    lost = score(["feedback"], ["friction", "feedback"], unexplained=True)
+    outside = score(["harmonic"], [], unexplained=True, kind="outside")
+    again = [{"seed": 1, "selected": ["feedback"], "unexplained": True, "final_rel_gap": 3.2},
+             {"seed": 2, "selected": ["friction", "feedback"], "unexplained": False,
+              "final_rel_gap": 1.1}]  # fmt: skip
+    per_seed = {
+        0: {"cases": {"sl": right, "vib": outside}},
+        1: {"cases": {"sl": right, "vib": outside}},
+        2: {"cases": {"sl": lost, "vib": outside}},
+    }
+    retries = {1: {"sl": again, "vib": again[:1]}, 2: {"sl": again[:1] * 2}}
+    rec = seeds_record(per_seed, retries=retries)
+    sl, vib = rec["cases"]["sl"], rec["cases"]["vib"]
+    assert [sl["seeds"][s]["verdict_right_first"] for s in "012"] == [True, False, False]
+    assert (sl["verdict_right"], sl["verdict_right_first"], sl["retried"], sl["rescued"]) == (
+        2, 1, 2, 1,
+    )  # fmt: skip
+    assert (vib["verdict_right_first"], vib["retried"], vib["rescued"]) == (3, 1, 0)
+    assert sl["seeds"]["1"]["retry"] == again
+    summary = rec["summary"]
+    assert (summary["retried"], summary["rescued"], summary["verdict_right_first"]) == (3, 1, 4)

@@ -11,7 +11,13 @@ rows are written into a float64 matrix ``out[column, row]`` with the column indi
 
 Every kernel is compiled with ``cache=True`` and ``error_model="numpy"``: a division by
 zero would give inf or nan instead of raising (none occurs for valid parameters), which
-spares every division in the inner loops its zero test and branch.
+spares every division in the inner loops its zero test and branch. The small helpers
+(``@inlined``: the plate's and the body's evaluations, the walks' steps and bounds) are
+also inlined into their callers by numba itself: a non-sine plate is evaluated 5-7 times
+a ride and 3-4 times a landing, and as calls those evaluations made an armature or
+harmonic simulation 12-18 % slower. The numbers are the same to the last bit (no
+floating-point operation changes); the price is a longer first compile, 42 s instead of
+29 s, once per install (docs/diagnosis-log.md, session 55).
 """
 
 from __future__ import annotations
@@ -23,6 +29,9 @@ from numba import njit, prange
 
 TWO_PI = 2.0 * math.pi
 HALF_PI = 0.5 * math.pi
+
+#: The decorator of the small helpers: a kernel inlined at numba's level into its callers.
+inlined = njit(cache=True, error_model="numpy", inline="always")
 
 # --- parameter vector ``par`` -------------------------------------------------------
 P_S = 0  # gamma_scale s: true Gamma = s * stated Gamma (applied by the caller)
@@ -84,7 +93,7 @@ ST_END = 2  # the protocol's last step ended
 ST_FULL = 3  # the output buffer is full before the protocol ended
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def mod_two_pi(x):
     """``x mod 2 pi`` for ``x >= 0``, equal to ``x % TWO_PI`` (an exact fmod) bit for bit.
 
@@ -102,7 +111,7 @@ def mod_two_pi(x):
     return r
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def safe_step(f, f1, m):
     """Largest ``t`` with ``f + f1 t - m t^2 / 2 > 0`` on ``[0, t)``, given ``f >= 0``, ``m > 0``.
 
@@ -120,7 +129,7 @@ def safe_step(f, f1, m):
     return 2.0 * f / (sq - f1)
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def arm_eval(tau, y0, v0, lam, om, f2):
     """Armature deflection ``y`` and its first three phase derivatives ``tau`` after a reference.
 
@@ -152,7 +161,7 @@ def arm_eval(tau, y0, v0, lam, om, f2):
     return y, y1, y2, y3
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def armature_kick(p, p1, p2, p3, dv, lam, f2):
     """Plate state just after the armature's velocity jumps by ``dv`` (an impact's recoil).
 
@@ -162,7 +171,7 @@ def armature_kick(p, p1, p2, p3, dv, lam, f2):
     return p, p1 + dv, p2 - 2.0 * lam * dv, p3 + (4.0 * lam * lam - f2) * dv
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def arm_bounds(y0, v0, f, lam):
     """Bounds on ``|y|, |y''|, |y'''|, |y''''|`` for all later phases (armature energy never grows).
 
@@ -178,7 +187,7 @@ def arm_bounds(y0, v0, f, lam):
     return b0, b2, b3, b4
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def plate_eval(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2):
     """Plate position and first three derivatives at phase ``phi``.
 
@@ -257,7 +266,7 @@ def ride_bounds(ha, hk, rp):
     return b2, b3, b4
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def ride_particular(phi, g, hk, ha, th, rp):
     """The armature's forced response to a riding body and its first three derivatives.
 
@@ -285,7 +294,7 @@ def ride_particular(phi, g, hk, ha, th, rp):
     return g * p + rp[rp.shape[0] - 1], g * p1, g * p2, g * p3
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp):
     """:func:`plate_eval`, plus the forced response to a riding body when ``rp`` is not
     empty (then ``ay, av, aref, lam, om, f2`` describe the free part of the loaded
@@ -300,7 +309,7 @@ def plate_eval_ride(phi, g, hk, ha, th, arm, ay, av, aref, lam, om, f2, rp):
     return p, p1, p2, p3
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def plate_direction(p1, p2):
     """Sign of the plate velocity, or of its acceleration where the velocity is zero."""
     if abs(p1) > 1e-13:
@@ -308,7 +317,7 @@ def plate_direction(p1, p2):
     return 1.0 if p2 >= 0.0 else -1.0
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def ride_armature(phi, g, hk, ha, th, ay, av, aref, lam, om, f2, rp):
     """Deflection and velocity of the loaded armature: free part plus forced part."""
     y, y1, _, _ = arm_eval(phi - aref, ay, av, lam, om, f2)
@@ -316,7 +325,7 @@ def ride_armature(phi, g, hk, ha, th, ay, av, aref, lam, om, f2, rp):
     return y + yp, y1 + yp1
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def ride_rebase(phi, y, y1, g, hk, ha, th, rp, load, f2, mu, sigma):
     """Free part ``(ay, av)`` at ``phi`` of a loaded armature at deflection ``y``, velocity
     ``y1``, for plate direction ``sigma`` (sets ``rp``'s constant, :func:`ride_constant`)."""
@@ -325,13 +334,13 @@ def ride_rebase(phi, y, y1, g, hk, ha, th, rp, load, f2, mu, sigma):
     return y - yp, y1 - yp1
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def ride_constant(rp, load, f2, mu, sigma):
     """Set the static part of the forced response: ``-L (1 + mu sigma) / f2``."""
     rp[rp.shape[0] - 1] = -load * (1.0 + mu * sigma) / f2
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def body_eval(s, x0, v0, gu, gd):
     """Body height, velocity and acceleration ``s`` after leaving ``(x0, v0)``.
 
@@ -348,7 +357,7 @@ def body_eval(s, x0, v0, gu, gd):
     return x0 + v0 * s - 0.5 * gd * s * s, v0 - gd * s, -gd
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def path_length(s, x0, v0, gu, gd):
     """Distance travelled by the body in its first ``s`` of flight (friction loss = mu * path)."""
     xs = body_eval(s, x0, v0, gu, gd)[0]
@@ -361,7 +370,7 @@ def path_length(s, x0, v0, gu, gd):
     return x0 - xs
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def body_apex(x0, v0, gu):
     """Phase since takeoff, height and velocity of the body's apex ``(sa, xa, va)``.
 
@@ -373,7 +382,7 @@ def body_apex(x0, v0, gu):
     return 0.0, x0, v0
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def body_at(s, x0, v0, sa, xa, va, gu, gd):
     """Body height, velocity and acceleration ``s`` after takeoff, given its apex.
 
@@ -386,7 +395,7 @@ def body_at(s, x0, v0, sa, xa, va, gu, gd):
     return xa + va * ts - 0.5 * gd * ts * ts, va - gd * ts, -gd
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def taylor_step(h, h1, h2, h3, m2, m3, m4):
     """Certified step of the landing walk from a point with ``h >= 0`` (bounds 1-3 of fly).
 
@@ -416,7 +425,7 @@ def taylor_step(h, h1, h2, h3, m2, m3, m4):
     return t
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def trial_bounds(hx, hx1, m2):
     """Where the backward bound from a trial point ``x`` certifies ``h > 0`` (bound 5 of fly).
 
@@ -434,7 +443,7 @@ def trial_bounds(hx, hx1, m2):
     return 2.0 * hx / (sq - b), (b - sq) / m2
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def next_trial(s, h, h1, h2, reach, guess, pending, ct, m2):
     """Where :func:`fly` places its next trial point (phase offset; -1: none).
 
@@ -589,7 +598,7 @@ def fly(
     return s, True, nev + 1, p, p1, p2, p3
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def contact_polish(s, h, h1, p, p1, p2, p3, nev):
     """Contact at ``s`` (``h`` within ``htol``): one Newton step of at most 1e-7 onto the root.
 
@@ -603,7 +612,7 @@ def contact_polish(s, h, h1, p, p1, p2, p3, nev):
     return s, True, nev, p, p1, p2, p3
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def taylor_move(s, dt, p, p1, p2, p3, nev):
     """Move the contact by a tiny ``dt``, the plate state by Taylor; the tuple of :func:`fly`."""
     p += dt * (p1 + 0.5 * dt * p2)
@@ -676,7 +685,7 @@ def fly_newton(
 SINE_EDGE = 1e-10
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def sine_alpha(g, c):
     """Phase ``asin(c / g)`` where ``g sin(phi) = c`` on the rising side; ``-1`` if ``g <= c``."""
     if g <= c:
@@ -684,7 +693,7 @@ def sine_alpha(g, c):
     return math.asin(c / g)
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def sine_region(phi, al):
     """Curvature interval of ``h'' = g sin(phi) - c`` holding ``phi``: ``(convex, end phase)``.
 
@@ -707,7 +716,7 @@ def sine_region(phi, al):
     return True, phi + (TWO_PI - r) + w  # at the end of a concave interval
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def sine_h(s, phi0, x0, v0, sa, xa, va, gu, gd, g):
     """Relative height and its first two derivatives ``s`` after takeoff, pure sine plate.
 
@@ -855,7 +864,7 @@ def fly_sine(phi0, x0, v0, smax, g, gu, gd, al_u, al_d, htol, maxit, q0, q1, q2,
     return s, True, maxit, g * sn, g * cs, -g * sn, -g * cs
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def sine_polish(s, h, h1, g, sn, cs, nev):
     """Contact at ``s`` (``|h|`` at most ``htol`` or rounding): one Newton step onto the root.
 
@@ -936,7 +945,7 @@ def predict_flight(hist, n, phi, v):
     return best
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def takeoff_ok(p1, p2, gu, gd):
     """Takeoff condition of a body riding the plate: plate accelerates down faster than gravity.
 
@@ -948,7 +957,7 @@ def takeoff_ok(p1, p2, gu, gd):
     return -p2 > gd
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def takeoff_window(g, mu):
     """The takeoff set ``[lo, hi)`` within a cycle of a pure sine plate; ``lo = -1`` if empty.
 
@@ -965,7 +974,7 @@ def takeoff_window(g, mu):
     return lo, math.pi - math.asin(gd / g)
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def ride_window(phi, phimax, lo, hi):
     """First phase ``>= phi`` inside the takeoff window ``[lo, hi)`` (mod 2 pi).
 
@@ -1019,7 +1028,7 @@ def ride_general(
     return phi, 2, 0.0, 0.0, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@inlined
 def tv_sine(a, b, g):
     """Total variation of ``g sin`` over ``[a, b]``: the ride's path length."""
     n = math.ceil((a - HALF_PI) / math.pi)

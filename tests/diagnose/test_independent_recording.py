@@ -102,3 +102,21 @@ def test_missed_contacts_and_misread_gammas_are_seen_through(tmp_path):
     assert diag["selected"] == ["friction"], diag["selected"]
     assert diag["steps"][0]["params"]["mu"] == pytest.approx(truth["mu"], rel=0.10)
     assert not diag["unexplained"], diag["unexplained_reasons"]
+
+
+def test_the_generator_shuffles_its_steps_and_leaves_a_gamma_range_out(tmp_path):
+    """``shuffled`` steps the same Gammas in another order (fixed by the seed);
+    ``skip_lo``/``skip_hi`` leave that Gamma range unstepped (CONTRACTS.md section 1: a
+    data gap). Reference: the ascending grid 1.0, 1.1, ..., 1.8."""
+
+    def gammas(name, **opt):
+        make_case(tmp_path / name, g0=1.0, g1=1.8, dg=0.1, step_s=0.1, seed=5, **opt)
+        doc = yaml.safe_load((tmp_path / name / "run.yaml").read_text())
+        return [s["gamma"] for s in doc["gamma_steps"]]
+
+    grid = gammas("plain")
+    assert grid == pytest.approx(np.arange(1.0, 1.85, 0.1))
+    shuffled = gammas("shuffled", shuffled=True)
+    assert shuffled != grid and sorted(shuffled) == grid
+    assert gammas("shuffled_again", shuffled=True) == shuffled
+    assert gammas("gap", skip_lo=1.25, skip_hi=1.55) == [g for g in grid if not 1.25 <= g <= 1.55]

@@ -14,10 +14,10 @@ zero would give inf or nan instead of raising (none occurs for valid parameters)
 spares every division in the inner loops its zero test and branch. The small helpers
 (``@inlined``: the plate's and the body's evaluations, the walks' steps and bounds) are
 also inlined into their callers by numba itself: a non-sine plate is evaluated 5-7 times
-a ride and 3-4 times a landing, and as calls those evaluations made an armature or
-harmonic simulation 12-18 % slower. The numbers are the same to the last bit (no
-floating-point operation changes); the price is a longer first compile, 42 s instead of
-29 s, once per install (docs/diagnosis-log.md, session 55).
+a ride and 3-4 times a landing, and inlined, an armature or harmonic simulation takes
+12-18 % less time than with those evaluations as calls. The numbers are the same to the
+last bit (no floating-point operation changes); the price is a longer first compile,
+42 s instead of 29 s, once per install (docs/diagnosis-log.md, session 55).
 """
 
 from __future__ import annotations

@@ -160,14 +160,13 @@ def main(argv: list[str] | None = None) -> int:
     for seed in args.seeds:
         print(f"--- diagnosis seed {seed}", flush=True)
         out = Path(args.out) / f"seed{seed}"
-        reused[seed] = {
-            c["name"] for c in cases if (out / "diagnoses" / f"{c['name']}.json").is_file()
-        }
+        diagnoses = {c["name"]: out / "diagnoses" / f"{c['name']}.json" for c in cases}
+        reused[seed] = {name for name, path in diagnoses.items() if path.is_file()}
         per_seed[seed] = run_blind(cases, out, seed=seed, workers=args.workers)
         retries[seed] = {
-            c["name"]: retried(json.loads((out / "diagnoses" / f"{c['name']}.json").read_text()))
-            for c in cases
-            if (out / "diagnoses" / f"{c['name']}.json").is_file()
+            name: retried(json.loads(path.read_text()))
+            for name, path in diagnoses.items()
+            if path.is_file()
         }
     record = seeds_record(per_seed, reused, retries)
     record["machine"] = {"python": platform.python_version(), "processor": platform.machine()}

@@ -29,6 +29,7 @@ from pathlib import Path
 from bouncelab.gap.diagnose import diagnose_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_blind_seeds import retried  # noqa: E402
 from bench_diagnose import GOAL_S  # noqa: E402
 from bench_physics import machine_speed  # noqa: E402
 from independent_rig import make_case  # noqa: E402
@@ -206,10 +207,7 @@ def score(truth: dict, diag: dict) -> dict:
         "phase_taken": [n["effect"] for n in diag.get("phase_taken", [])],
         # a run left unexplained is diagnosed again (docs/diagnosis.md section 1, "Retries"):
         # each seed's conclusion, so that a run's time shows what its retry cost
-        "retry": [
-            {k: d[k] for k in ("seed", "selected", "unexplained", "final_rel_gap")}
-            for d in (diag.get("retry") or {}).get("diagnoses", [])
-        ],
+        "retry": retried(diag),
         # the harmonic read off the takeoff phases, where it stood out (None: not seen)
         "harmonic_read": diag["design"].get("harmonic_read"),
     }

@@ -1567,8 +1567,11 @@ def fit_warnings(fit: FitResult, boot: np.ndarray) -> list[str]:
         sd = boot.std(axis=0)
         for i in range(n):
             for j in range(i + 1, n):
-                distinct = len(np.unique(boot[:, [i, j]], axis=0))
-                if sd[i] > 0 and sd[j] > 0 and distinct >= TRADE_OFF_MIN_POINTS:
+                if (
+                    sd[i] > 0
+                    and sd[j] > 0
+                    and len(np.unique(boot[:, [i, j]], axis=0)) >= TRADE_OFF_MIN_POINTS
+                ):
                     # a spread of rounding size can still be 0 to corrcoef: NaN, no warning
                     with np.errstate(invalid="ignore", divide="ignore"):
                         r = float(np.corrcoef(boot[:, i], boot[:, j])[0, 1])

@@ -213,6 +213,16 @@ def score(truth: dict, diag: dict) -> dict:
     }
 
 
+def stage_seconds(timings: dict) -> dict:
+    """Where a case's time went (the diagnosis's ``timings``): ``diagnoses_s``, each
+    seed's diagnosis (two when retried), and ``stages_s``, the reported diagnosis's
+    seconds per stage of the selection (``round 1``, ``refinement``, ...)."""
+    return {
+        "diagnoses_s": [round(d["total_s"], 1) for d in timings["diagnoses"]],
+        "stages_s": {k: round(v["seconds"], 1) for k, v in timings["stages"].items()},
+    }
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--only", nargs="*", default=None)
@@ -228,10 +238,13 @@ def main() -> None:
             t0 = time.perf_counter()
             make_case(run_dir, **CASES[name])
             t1 = time.perf_counter()
-            diag = diagnose_run(run_dir, workers=args.workers, seed=args.seed, progress=False)
+            diag = diagnose_run(
+                run_dir, workers=args.workers, seed=args.seed, progress=False, include_timings=True
+            )
             t2 = time.perf_counter()
             truth = json.loads(run_dir.with_name(name + ".truth.json").read_text())
             s = score(truth, diag) | {"generate_s": t1 - t0, "diagnose_s": t2 - t1}
+            s |= stage_seconds(diag["timings"])
             s["machine_feedback_mflights_s"] = machine_speed()
             record["cases"][name] = s
             errs = ", ".join(f"{k} {100 * v:.1f} %" for k, v in s["param_rel_error"].items())

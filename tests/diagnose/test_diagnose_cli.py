@@ -77,7 +77,7 @@ def test_flights_of_another_run_refused(null_case, tmp_path, capsys):
     assert "other.csv" in capsys.readouterr().err
 
 
-def test_cli_writes_contract_json(null_case, tmp_path, monkeypatch):
+def test_cli_writes_contract_json(null_case, tmp_path, monkeypatch, capsys):
     """End to end on pseudo-data of the ideal model (with the small test budget): the null
     (truth: no effect) selects nothing; the run folder's bytes do not change."""
     import bouncelab.gap.diagnose as diag
@@ -87,8 +87,9 @@ def test_cli_writes_contract_json(null_case, tmp_path, monkeypatch):
     before = _tree_hash(run_dir)
     out = tmp_path / "diag.json"
     code = main(
-        ["diagnose", str(run_dir), "--flights", str(flights), "-o", str(out), "--workers", "1"]
-    )
+        ["diagnose", str(run_dir), "--flights", str(flights), "-o", str(out), "--workers", "1",
+         "--timings"]
+    )  # fmt: skip
     assert code == 0
     r = json.loads(out.read_text())
     assert r["run"] == "pseudo" and r["selected"] == [] and r["unexplained"] is False
@@ -97,6 +98,16 @@ def test_cli_writes_contract_json(null_case, tmp_path, monkeypatch):
     work = r["design"]["work"]["flights"]
     assert work > sum(c["flights"] for tried in r["rounds"] for c in tried) > 0
     assert _tree_hash(run_dir) == before
+    # --timings: the whole call, each seed's diagnosis (one: explained), the fits by stage
+    t = r["timings"]
+    assert [d["seed"] for d in t["diagnoses"]] == [0]
+    assert t["total_s"] >= t["read_s"] + t["diagnoses"][0]["total_s"]
+    assert sum(s["seconds"] for s in t["stages"].values()) <= t["diagnoses"][0]["total_s"]
+    assert list(t["stages"])[:2] == ["baseline", "round 1"]
+    assert sum(s["fits"] for s in t["stages"].values()) == len(t["fits"]) > 5
+    assert sum(f["flights"] for f in t["fits"]) <= work
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("time: ") and "seed 0 " in last and "round 1 " in last
 
 
 def test_deterministic_and_calibration_fixed(null_case):

@@ -835,6 +835,14 @@ def test_the_selection_counts_the_flights_of_every_fit_it_made(monkeypatch):
     sel = armature_last_round(monkeypatch, fake_fit_many)
     assert calls.count("restitution+feedback") == 5  # 3 seeds, 2 searches of the other choice
     assert sel["work"] == {"flights": 100 * len(calls)}
+    # the log behind --timings: one entry per fit, in the order made, with its stage
+    log = sel["fit_log"]
+    assert [f["model"] for f in log] == calls
+    assert sum(f["flights"] for f in log) == sel["work"]["flights"]
+    stages = [f["stage"] for f in log]
+    assert stages == sorted(stages) and stages[0] == "baseline" and stages[-1] == "round 2"
+    # the last round's extra armature searches are that round's work
+    assert {f["stage"] for f in log if f["model"] == "restitution+feedback"} == {"round 2"}
 
 
 @pytest.mark.parametrize("trail, searched_again", [(0.2, True), (0.3, False)])

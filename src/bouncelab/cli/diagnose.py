@@ -72,7 +72,10 @@ def add_parser(sub) -> None:
         "never; not with --check-seeds)",
     )
     p.add_argument(
-        "--timings", action="store_true", help="add wall-clock timings (not deterministic)"
+        "--timings",
+        action="store_true",
+        help="add wall-clock timings (not deterministic): the whole command, each seed's "
+        "diagnosis, the fits by stage",
     )
     p.set_defaults(handler=run)
 
@@ -121,7 +124,20 @@ def run(args) -> int:
     if retried:
         print(f"warning: {retried}", file=sys.stderr)
     print(summary_line(out, result), file=sys.stderr)
+    if "timings" in result:
+        print(timings_line(result["timings"]), file=sys.stderr)
     return 0
+
+
+def timings_line(timings: dict) -> str:
+    """The line ``--timings`` adds: the whole time, each seed's diagnosis, and the
+    reported diagnosis's stages (seconds, wall clock)."""
+    runs = ", ".join(f"seed {d['seed']} {d['total_s']:.0f} s" for d in timings["diagnoses"])
+    stages = ", ".join(f"{k} {v['seconds']:.0f} s" for k, v in timings["stages"].items())
+    return (
+        f"time: {timings['total_s']:.0f} s (reading {timings['read_s']:.0f} s; {runs}); "
+        f"fits of the reported diagnosis: {stages}"
+    )
 
 
 def summary_line(out: Path, result: dict) -> str:

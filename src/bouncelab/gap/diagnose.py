@@ -637,8 +637,27 @@ def diagnose_flights(
             "fixed": bool(fix_calibration),
         }
     if include_timings:
-        out["timings"] = {"total_s": time.perf_counter() - t0}
+        out["timings"] = diagnosis_timings(time.perf_counter() - t0, sel["fit_log"])
     return _json_safe(out)
+
+
+def diagnosis_timings(total_s: float, fit_log: list[dict]) -> dict:
+    """The ``timings`` of one diagnosis (wall clock, the only non-deterministic key):
+    ``total_s``, ``stages`` (per stage of the selection, in the order they ran: ``fits``,
+    ``n_evals``, ``flights`` and ``seconds`` summed over its fits; the rest of
+    ``total_s`` is the problem's set-up with its noise floors, the features and the
+    intervals) and ``fits`` (``fit_log`` of :func:`bouncelab.gap.select.forward_select`,
+    one entry per fit). Why: where a diagnosis's time goes (docs/diagnosis.md section 2,
+    "Speed").
+    """
+    stages: dict[str, dict] = {}
+    for f in fit_log:
+        s = stages.setdefault(f["stage"], {"fits": 0, "n_evals": 0, "flights": 0, "seconds": 0.0})
+        s["fits"] += 1
+        s["n_evals"] += f["n_evals"]
+        s["flights"] += f["flights"]
+        s["seconds"] += f["seconds"]
+    return {"total_s": float(total_s), "stages": stages, "fits": list(fit_log)}
 
 
 def _features(problem, model: Model) -> dict:
@@ -841,7 +860,11 @@ def diagnose_run(
     workers : processes that evaluate the fits' populations (default 1: one process, the
         kernels on numba's threads; see :func:`bouncelab.gap.select.evaluation_pool`).
     progress : a progress bar on stderr (default: when it is a terminal).
-    include_timings : add wall-clock ``timings`` (the only non-deterministic key).
+    include_timings : add wall-clock ``timings`` (the only non-deterministic key): the
+        whole call's ``total_s`` (every seed's diagnosis), ``read_s`` (the run read and
+        its flights extracted), ``diagnoses`` (``seed`` and ``total_s`` of each diagnosis
+        run) and the reported diagnosis's ``stages`` and ``fits``
+        (:func:`diagnosis_timings`).
     check_seeds : diagnose the run this many times in all, with seeds ``seed``,
         ``seed + 1``, ...; the result is the diagnosis whose conclusion most seeds reached
         (:func:`bouncelab.gap.seeds.majority_index`; the first when all differ), with
@@ -866,6 +889,7 @@ def diagnose_run(
     """
     from bouncelab.runs import load_run
 
+    t0 = time.perf_counter()
     run = load_run(run_dir)
     if run.kind != "sweep":
         raise BouncelabError(run.yaml_path, f"run is a {run.kind} run; diagnose needs a sweep")
@@ -900,6 +924,7 @@ def diagnose_run(
             + (f" ({accel_notes[0]})" if accel_notes else ""),
         )
     fixed = accel_fixed(accel) if fix_accel else None
+    read_s = time.perf_counter() - t0
 
     def diagnosis(with_seed: int) -> dict:
         return diagnose_flights(
@@ -958,6 +983,18 @@ def diagnose_run(
     compared = [] if fix_accel else accel_warnings(accel, result)
     result["input_warnings"] = drive_warnings(run, qc) + accel_notes + compared
     result["warnings"] = result["input_warnings"] + result["warnings"]
+    if include_timings:
+        # the whole call: reading the run and every seed's diagnosis, retries included
+        result["timings"] = {
+            "total_s": time.perf_counter() - t0,
+            "read_s": read_s,
+            "diagnoses": [
+                {"seed": int(r["design"]["seed"]), "total_s": r["timings"]["total_s"]}
+                for r in results
+            ],
+            "stages": result["timings"]["stages"],
+            "fits": result["timings"]["fits"],
+        }
     return result
 
 

@@ -48,7 +48,7 @@ from __future__ import annotations
 import contextlib
 import math
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -211,9 +211,26 @@ class WorkTally:
     session 30)."""
 
     flights: int = 0
+    #: the selection's stage the next fits belong to (``baseline``, ``round N``,
+    #: ``pair_check``, ``refinement``, ``box``, ``weak_dropped``), set by
+    #: :func:`forward_select` as it goes
+    stage: str = "baseline"
+    #: one entry per fit counted: ``stage``, ``model``, ``n_evals``, ``flights``,
+    #: ``seconds`` (wall clock: for ``--timings`` only, never in the deterministic keys)
+    fits: list = field(default_factory=list)
 
     def add(self, fits) -> None:
-        self.flights += sum(int(f.flights) for f in fits)
+        for f in fits:
+            self.flights += int(f.flights)
+            self.fits.append(
+                {
+                    "stage": self.stage,
+                    "model": f.model.name,
+                    "n_evals": int(f.n_evals),
+                    "flights": int(f.flights),
+                    "seconds": float(f.seconds),
+                }
+            )
 
 
 def fit_many(
@@ -884,7 +901,8 @@ def forward_select(
     ``takeoff_refused`` (see ``refuted``),
     ``weak_dropped`` (list of ``{"effect", "param", "interval"}``, see ``interval``) and
     ``work`` (``flights``: what
-    every fit simulated, :class:`WorkTally`).
+    every fit simulated, :class:`WorkTally`) and ``fit_log`` (:attr:`WorkTally.fits`:
+    each fit's stage, model, evaluations, flights and wall-clock seconds).
     """
     fit_settings = fit_settings or FitSettings()
     settings = settings or SelectSettings()
@@ -948,6 +966,7 @@ def forward_select(
                     rounds, accepted, pair_job, pool, progress, floor, settings, refused
                 )
                 mark_proposed("pair_check", (pair_check or {}).get("refused_pair"))
+                work.stage = "pair_check"
                 work.add(pair_fits)
                 if pair_check is not None and "replaced_by" in pair_check:
                     effects = [*base_model.effects, *pair_check["replaced_by"]]
@@ -965,6 +984,7 @@ def forward_select(
                 stop = "within_floor" if strict else "no_candidates"
                 break
             prev = {**current.model.params, **fixed}
+            work.stage = f"round {len(rounds) + 1}"
             owners, jobs = [], []
             round1 = _round1_choices(rounds)
             last = len(accepted) == settings.max_effects - 1
@@ -1071,6 +1091,7 @@ def forward_select(
                 rounds, accepted, pair_job, pool, progress, floor, settings, refused
             )
             mark_proposed("pair_check", (pair_check or {}).get("refused_pair"))
+            work.stage = "pair_check"
             work.add(pair_fits)
             if pair_check is not None and "replaced_by" in pair_check:
                 current = accepted[-1][1]
@@ -1084,6 +1105,7 @@ def forward_select(
         if refined is not None:
             # the selected model again, from its fitted values, on the expected gap
             final_problem = replace(problem, n_draws=REFINE_DRAWS)
+            work.stage = "refinement"
             (current,) = fit_many(
                 [(final_problem, current.model.name, dict(current.model.params), fixed,
                   None, refined, seed)],
@@ -1111,6 +1133,7 @@ def forward_select(
             and "feedback" not in current.model.effects  # refined on the expected gap above
             and heldout_gap(current, final_problem) > settings.box_ratio * floor
         ):
+            work.stage = "box"
             current, box = box_refinement(
                 current, problem, fixed, fit_settings, seed, pool, progress, work
             )
@@ -1126,6 +1149,7 @@ def forward_select(
                 lo, hi = ci[name]
                 if lo - tol <= null <= hi + tol:
                     weak.append({"effect": eff, "param": name, "interval": [float(lo), float(hi)]})
+            work.stage = "weak_dropped"
             for w in weak:
                 current = _without(
                     final_problem, current, w["effect"], fixed, fit_settings, seed, pool, work
@@ -1150,4 +1174,5 @@ def forward_select(
         "phase_taken": phase_taken,
         "takeoff_refused": takeoff_refused,
         "work": {"flights": work.flights},
+        "fit_log": work.fits,
     }

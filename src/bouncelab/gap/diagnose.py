@@ -861,10 +861,10 @@ def diagnose_run(
         kernels on numba's threads; see :func:`bouncelab.gap.select.evaluation_pool`).
     progress : a progress bar on stderr (default: when it is a terminal).
     include_timings : add wall-clock ``timings`` (the only non-deterministic key): the
-        whole call's ``total_s`` (every seed's diagnosis), ``read_s`` (the run read and
-        its flights extracted), ``diagnoses`` (``seed`` and ``total_s`` of each diagnosis
-        run) and the reported diagnosis's ``stages`` and ``fits``
-        (:func:`diagnosis_timings`).
+        whole call's ``total_s`` (every seed's diagnosis), ``read_s`` (the run read, its
+        flights extracted, its accelerometer read), ``diagnoses`` (``seed`` and
+        ``total_s`` of each diagnosis run) and the reported diagnosis's ``stages`` and
+        ``fits`` (:func:`diagnosis_timings`).
     check_seeds : diagnose the run this many times in all, with seeds ``seed``,
         ``seed + 1``, ...; the result is the diagnosis whose conclusion most seeds reached
         (:func:`bouncelab.gap.seeds.majority_index`; the first when all differ), with

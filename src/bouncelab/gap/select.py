@@ -942,6 +942,17 @@ def forward_select(
         pair_check, pair_fits = None, []
         pair_job = (problem, base_fit, fixed, fit_settings, seed)
 
+        def check_pairs(accepted):
+            """:func:`_pair_for_armature` on ``accepted``, its refusals marked and its fits
+            counted: ``(accepted, pair_check, pair_fits)``."""
+            accepted, check, fits = _pair_for_armature(
+                rounds, accepted, pair_job, pool, progress, floor, settings, refused
+            )
+            mark_proposed("pair_check", (check or {}).get("refused_pair"))
+            work.stage = "pair_check"
+            work.add(fits)
+            return accepted, check, fits
+
         def shows_more(model) -> bool:
             """Whether the data shows ``model`` wrong beyond the flight times (the reason
             kept in ``went_on``): within the floor, the selection then goes on."""
@@ -962,12 +973,7 @@ def forward_select(
             strict = within and g_cur > settings.strict_ratio * floor
             if strict and rounds and pair_check is None:
                 # the armature alone would end the selection here: its pairs come first
-                accepted, pair_check, pair_fits = _pair_for_armature(
-                    rounds, accepted, pair_job, pool, progress, floor, settings, refused
-                )
-                mark_proposed("pair_check", (pair_check or {}).get("refused_pair"))
-                work.stage = "pair_check"
-                work.add(pair_fits)
+                accepted, pair_check, pair_fits = check_pairs(accepted)
                 if pair_check is not None and "replaced_by" in pair_check:
                     effects = [*base_model.effects, *pair_check["replaced_by"]]
                     current = accepted[-1][1]
@@ -1087,12 +1093,7 @@ def forward_select(
             effects.append(eff)
             current = best
         if pair_check is None:
-            accepted, pair_check, pair_fits = _pair_for_armature(
-                rounds, accepted, pair_job, pool, progress, floor, settings, refused
-            )
-            mark_proposed("pair_check", (pair_check or {}).get("refused_pair"))
-            work.stage = "pair_check"
-            work.add(pair_fits)
+            accepted, pair_check, pair_fits = check_pairs(accepted)
             if pair_check is not None and "replaced_by" in pair_check:
                 current = accepted[-1][1]
         final_problem, refined = problem, None

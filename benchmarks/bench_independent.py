@@ -12,7 +12,9 @@ as a miss, as in the blind validation), the verdict, and the time.
 Measures, prints and writes ``benchmarks/results/independent.json`` (with ``--seed N``,
 the diagnosis's own seed, ``independent_seedN.json``: a check that an answer is not one
 seed's luck).
-Run: ``python benchmarks/bench_independent.py [--only NAME ...] [--workers 2] [--seed 0]``.
+Run: ``python benchmarks/bench_independent.py [--only NAME ...] [--workers 2] [--seed 0]
+[--diagnoses DIR]`` (``--diagnoses``: keep each case's diagnosis JSON there, to score
+it again later).
 One case (:data:`WARM_UP`) is diagnosed first, untimed, so that numba's compiling after an
 install or a source change does not land on the first case's time.
 """
@@ -29,6 +31,7 @@ import time
 from pathlib import Path
 
 from bouncelab.gap.diagnose import diagnose_run
+from bouncelab.gap.fit import warned_params
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_blind_seeds import retried  # noqa: E402
@@ -188,6 +191,7 @@ def score(truth: dict, diag: dict) -> dict:
             else:
                 errors[name] = abs(compared[name] - value) / abs(value)
     out_of_library = bool(truth["outside"])
+    warned = warned_params(last.get("warnings", []))
     return {
         "true": sorted(true),
         "outside": truth["outside"],
@@ -199,6 +203,9 @@ def score(truth: dict, diag: dict) -> dict:
         "unexplained": diag["unexplained"],
         "verdict_right": diag["unexplained"] == out_of_library,
         "param_rel_error": errors,
+        # whether the last step warns about each scored parameter (loose, on a bound,
+        # trading off): can a value given without a warning be taken as it is?
+        "param_warned": {name: name in warned for name in errors},
         "other_errors": other,
         "final_floors": diag["final_gap"] / diag["noise_floor"],
         "min_contact_s": diag["design"].get("min_contact_s"),
@@ -219,6 +226,24 @@ def score(truth: dict, diag: dict) -> dict:
     }
 
 
+def warning_counts(cases) -> dict:
+    """The scored parameters counted by their warnings: those outside 15 % (and of them,
+    warned about), those without a warning (and of them, within 15 %). Cases scored
+    before ``param_warned`` was kept are left out."""
+    pairs = [
+        (v <= 0.15, c["param_warned"][name])
+        for c in cases
+        if "param_warned" in c
+        for name, v in c["param_rel_error"].items()
+    ]
+    return {
+        "params_outside_15pct": sum(not ok for ok, _ in pairs),
+        "params_outside_15pct_warned": sum(not ok and w for ok, w in pairs),
+        "params_unwarned": sum(not w for _, w in pairs),
+        "params_unwarned_within_15pct": sum(ok and not w for ok, w in pairs),
+    }
+
+
 def stage_seconds(timings: dict) -> dict:
     """Where a case's time went (the diagnosis's ``timings``): ``diagnoses_s``, each
     seed's diagnosis (two when retried), and ``stages_s``, the reported diagnosis's
@@ -234,7 +259,11 @@ def main() -> None:
     p.add_argument("--only", nargs="*", default=None)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=0, help="the diagnosis's seed (default 0)")
+    p.add_argument("--diagnoses", default=None, help="folder to keep each diagnosis JSON in")
     args = p.parse_args()
+    keep = Path(args.diagnoses) if args.diagnoses else None
+    if keep:
+        keep.mkdir(parents=True, exist_ok=True)
     names = args.only or list(CASES)
     out = OUT if args.seed == 0 else OUT.with_name(f"independent_seed{args.seed}.json")
     record = json.loads(out.read_text()) if out.exists() and args.only else {"cases": {}}
@@ -253,6 +282,8 @@ def main() -> None:
                 run_dir, workers=args.workers, seed=args.seed, progress=False, include_timings=True
             )
             t2 = time.perf_counter()
+            if keep:
+                (keep / f"{name}.json").write_text(json.dumps(diag, indent=1) + "\n")
             truth = json.loads(run_dir.with_name(name + ".truth.json").read_text())
             s = score(truth, diag) | {"generate_s": t1 - t0, "diagnose_s": t2 - t1}
             s |= stage_seconds(diag["timings"])
@@ -276,6 +307,7 @@ def main() -> None:
         "outside_cases": len(cases) - len(library),
         "params_within_15pct": sum(v <= 0.15 for c in cases for v in c["param_rel_error"].values()),
         "params": sum(len(c["param_rel_error"]) for c in cases),
+        **warning_counts(cases),
         "max_diagnose_s": max(c["diagnose_s"] for c in cases),
         "over_goal_s": sorted(n for n, c in record["cases"].items() if c["diagnose_s"] > GOAL_S),
     }

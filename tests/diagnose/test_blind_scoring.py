@@ -104,6 +104,22 @@ def test_interval_hits_and_their_count():
     assert (s["n_params_in_interval"], s["n_params_scored"]) == (0, 1)
 
 
+def test_parameters_counted_by_their_warnings():
+    """mu 0.2 fitted 0.3 (50 % off) with a warning naming it, e 0.4 fitted 0.41 (2.5 %)
+    without one, s 1.1 fitted 1.3 (18 %) without one: 2 outside the goal, 1 of them
+    warned about; 2 unwarned, 1 of them within the goal."""
+    diag = _diag(["friction", "restitution", "gamma_scale"], {"mu": 0.3, "e": 0.41, "s": 1.3})
+    diag["steps"] = [{"warnings": ["mu=0.3 is poorly identified: interval 0.1 to 0.5"]}]
+    sc = score_case(diag, _truth(mu=0.2, e=0.4, s=1.1))
+    assert sc["param_warned"] == {
+        "friction": {"mu": True}, "restitution": {"e": False}, "gamma_scale": {"s": False},
+    }  # fmt: skip
+    assert summarize({"c": sc})["param_warnings"] == {
+        "n_params": 3, "n_outside_goal": 2, "n_outside_goal_warned": 1,
+        "n_unwarned": 2, "n_unwarned_within_goal": 1,
+    }  # fmt: skip
+
+
 def test_case_file_merges_over_base():
     cases = load_cases(Path(__file__).parents[2] / "config" / "blind" / "cases.yaml")
     names = {c["name"] for c in cases}

@@ -30,6 +30,7 @@ from bouncelab.gap.fit import (
     min_contact_T,
     noise_intervals,
     poorly_identified,
+    warned_params,
 )
 from bouncelab.physics import EFFECTS, Model
 
@@ -168,6 +169,20 @@ def test_warnings_on_bound_and_trade_off():
     assert fit_warnings(fit, two) == [x for x in w if "bound" in x]
     three = np.vstack([two, [0.1, 1.05]])
     assert any("trade off" in x for x in fit_warnings(fit, three))
+
+
+def test_warned_params_reads_the_fits_own_warning_lines():
+    """The parameters named by fit_warnings and poorly_identified, read back from their
+    lines: mu on its bound and loose, mu and s trading off; a line of another kind (the
+    verdict's) names none."""
+    fit = _fake_fit([[0.0, 1.0], [0.3, 1.1]], [[0.1, 0.1], [0.5, 0.5]], names=("mu", "s"))
+    boot = np.array([[0.0, 1.0], [0.1, 1.05], [0.2, 1.1], [0.3, 1.15]])
+    bound = [x for x in fit_warnings(fit, boot) if "bound" in x]
+    assert warned_params(bound) == {"mu"}
+    assert warned_params(fit_warnings(fit, boot)) == {"mu", "s"}
+    assert warned_params(poorly_identified(fit, {"mu": [0.15, 0.3]})) == {"mu"}
+    assert warned_params(["the verdict is borderline: 2.87 +- 0.65 noise floors"]) == set()
+    assert warned_params([]) == set()
 
 
 def test_read_calibration(tmp_path):

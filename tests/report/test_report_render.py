@@ -227,3 +227,25 @@ def test_accepted_effects_caption_shows_the_accelerometer_beside_the_drop_test(t
     del diag["accel_calibration"]
     (run / "diagnosis.json").write_text(json.dumps(diag))
     assert caption() == "Effects accepted, in order (drop-test calibration: -)"
+
+
+def test_blind_table_says_whether_the_misses_were_warned_about(tmp_path):
+    """The blind validation's table counts the parameters by their warnings, per case set;
+    a record scored before it had the counts shows "-"."""
+    import json
+
+    from bouncelab.report.content import blind_validation_blocks
+
+    res = tmp_path / "results"
+    (res / "figures").mkdir(parents=True)
+    (res / "blind").mkdir()
+    plt.figure().savefig(res / "figures" / "fig_blind_validation.png")
+    plt.close("all")
+    warned = {"n_params": 5, "n_outside_goal": 2, "n_outside_goal_warned": 2,
+              "n_unwarned": 3, "n_unwarned_within_goal": 3}  # fmt: skip
+    scores = {"by_set": {"validation": {"param_warnings": warned}, "development": {}}}
+    (res / "blind" / "scores.json").write_text(json.dumps(scores))
+    table = next(b for b in blind_validation_blocks(res, tmp_path) if b["type"] == "table")
+    rows = {r[0]: r[1:] for r in table["rows"]}
+    assert rows["parameters outside 15 % that the diagnosis warned about"] == ["2 of 2", "-", "all"]
+    assert rows["parameters without a warning that are within 15 %"] == ["3 of 3", "-", "-"]

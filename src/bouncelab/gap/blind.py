@@ -29,6 +29,7 @@ import numpy as np
 import yaml
 
 from bouncelab.errors import BouncelabError
+from bouncelab.gap.fit import warned_params
 from bouncelab.physics import EFFECT_ORDER
 from bouncelab.yamlfile import read_yaml
 
@@ -169,7 +170,9 @@ def score_case(diagnosis: dict, truth_params: dict) -> dict:
     ``unexplained``, ``false_alarm`` (null cases: anything selected or unexplained),
     ``flagged`` (outside cases: unexplained), ``param_errors`` (relative errors of the
     true effects' parameters that the final model fitted), ``param_in_interval``
-    (whether each of them lies in the last accepted step's interval).
+    (whether each of them lies in the last accepted step's interval), ``param_warned``
+    (whether the last accepted step warns about each of them: loose, on a bound or
+    trading off, :func:`bouncelab.gap.fit.warned_params`).
     """
     lib, outside = true_effects(truth_params)
     selected = list(diagnosis["selected"])
@@ -185,11 +188,13 @@ def score_case(diagnosis: dict, truth_params: dict) -> dict:
     fitted = diagnosis.get("final_model", {}).get("params", {})
     steps = diagnosis.get("steps") or []
     ci = steps[-1].get("params_ci", {}) if steps else {}
-    errors, hits = {}, {}
+    warned = warned_params(steps[-1].get("warnings", [])) if steps else set()
+    errors, hits, flags = {}, {}, {}
     for eff, params in lib.items():
         if eff in selected:
             errors[eff] = relative_errors(params, fitted)
             hits[eff] = interval_hits(params, ci)
+            flags[eff] = {name: name in warned for name in errors[eff]}
     out = {
         "true": sorted(lib),
         "true_params": lib,
@@ -201,6 +206,7 @@ def score_case(diagnosis: dict, truth_params: dict) -> dict:
         "unexplained": bool(diagnosis["unexplained"]),
         "param_errors": errors,
         "param_in_interval": hits,
+        "param_warned": flags,
         "fitted_params": fitted,
     }
     if kind == "single":
@@ -222,6 +228,10 @@ def summarize(scores: dict[str, dict]) -> dict:
     second effect). Combination cases are listed with their selected sets. Parameter
     errors are those of the null, single-effect and combination cases (per case they
     stay in ``scores[name]["param_errors"]``, out-of-library cases included).
+    ``param_warnings`` counts the same parameters by the diagnosis's warnings: how many
+    missed the goal and how many of those were warned about, how many had no warning
+    and how many of those met the goal (whether a value given without a warning can be
+    taken as it is).
     """
     idx = {lab: i for i, lab in enumerate(LABELS)}
     cm = np.zeros((len(LABELS), len(LABELS)), dtype=int)
@@ -229,6 +239,7 @@ def summarize(scores: dict[str, dict]) -> dict:
     top_right = set_right = false_alarms = flagged = 0
     errs: dict[str, list[float]] = {}
     hits: list[bool] = []
+    warned: list[tuple[bool, bool]] = []  # (within the goal, warned about) per parameter
     for sc in scores.values():
         if sc["kind"] in ("single", "null"):
             t = sc["true"][0] if sc["true"] else "none"
@@ -250,6 +261,9 @@ def summarize(scores: dict[str, dict]) -> dict:
                 if eff == "harmonic" and name == "k":
                     continue  # a discrete choice: right or wrong, counted below
                 errs.setdefault(f"{eff}.{name}", []).append(v)
+                flag = sc.get("param_warned", {}).get(eff, {}).get(name)
+                if flag is not None:
+                    warned.append((v <= GOALS["param_rel_error"], bool(flag)))
         for eff, ph in sc.get("param_in_interval", {}).items():
             hits += [h for name, h in ph.items() if not (eff == "harmonic" and name == "k")]
     all_err = [v for vs in errs.values() for v in vs]
@@ -268,6 +282,13 @@ def summarize(scores: dict[str, dict]) -> dict:
         "param_within_goal": within,
         "n_params_in_interval": int(sum(hits)),
         "n_params_scored": len(hits),
+        "param_warnings": {
+            "n_params": len(warned),
+            "n_outside_goal": sum(not ok for ok, _ in warned),
+            "n_outside_goal_warned": sum(not ok and w for ok, w in warned),
+            "n_unwarned": sum(not w for _, w in warned),
+            "n_unwarned_within_goal": sum(ok and not w for ok, w in warned),
+        },
         "combinations": {
             name: {"true": sc["true"], "selected": sc["selected"], "set_right": sc["set_right"]}
             for name, sc in scores.items()

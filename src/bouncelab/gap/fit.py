@@ -21,6 +21,7 @@ smaller gap by fitting noise of the steps it is judged on.
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -1528,6 +1529,30 @@ def poorly_identified(fit: FitResult, ci: dict, share: float = WIDE_SHARE) -> li
         lo, hi = ci[p.name]
         if hi - lo > share * max(abs(v), 1e-12):
             out.append(f"{p.name}={v:.4g} is poorly identified: interval {lo:.4g} to {hi:.4g}")
+    return out
+
+
+#: The lines of :func:`fit_warnings` and :func:`poorly_identified`, by the parameters they
+#: name: ``p=v is poorly identified ...``, ``p=v sits on its ... bound ...`` and
+#: ``p and q trade off ...``.
+_PARAM_WARNING = re.compile(
+    r"^(\w+)=\S+ (?:is poorly identified|sits on its)|^(\w+) and (\w+) trade off"
+)
+
+
+def warned_params(warnings: list[str]) -> set[str]:
+    """The parameters that a fit's warnings (a diagnosis step's ``warnings``, written by
+    :func:`fit_warnings` and :func:`poorly_identified`) say not to trust alone: loose,
+    on a bound, or trading off with another. Other lines are ignored.
+
+    Why: the blind validation scores whether a parameter outside the 15 % goal was
+    warned about, and whether one without a warning can be taken at its value.
+    """
+    out: set[str] = set()
+    for line in warnings:
+        m = _PARAM_WARNING.match(line)
+        if m:
+            out.update(g for g in m.groups() if g)
     return out
 
 

@@ -409,6 +409,13 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
     return blocks
 
 
+def _count(summary: dict, part: str, whole: str) -> str:
+    """``"part of whole"`` from a blind summary's ``param_warnings`` ("-" in a record
+    scored before it had them)."""
+    w = summary.get("param_warnings") or {}
+    return f"{w[part]} of {w[whole]}" if part in w and whole in w else "-"
+
+
 def blind_validation_blocks(results: Path, captions: Path) -> list[dict]:
     """The blind validation of the diagnosis, when the workflow computed it."""
     png = results / "figures" / "fig_blind_validation.png"
@@ -445,6 +452,10 @@ def blind_validation_blocks(results: Path, captions: Path) -> list[dict]:
         row("true parameters inside the reported interval",
             lambda m: f"{m.get('n_params_in_interval', '-')} of {m.get('n_params_scored', '-')}",
             "-"),
+        row("parameters outside 15 % that the diagnosis warned about",
+            lambda m: _count(m, "n_outside_goal_warned", "n_outside_goal"), "all"),
+        row("parameters without a warning that are within 15 %",
+            lambda m: _count(m, "n_unwarned_within_goal", "n_unwarned"), "-"),
     ]  # fmt: skip
 
     def errors(m, name):

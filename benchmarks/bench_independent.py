@@ -30,6 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from bouncelab.gap.blind import warning_counts
 from bouncelab.gap.diagnose import diagnose_run
 from bouncelab.gap.fit import warned_params
 
@@ -226,22 +227,18 @@ def score(truth: dict, diag: dict) -> dict:
     }
 
 
-def warning_counts(cases) -> dict:
-    """The scored parameters counted by their warnings: those outside 15 % (and of them,
-    warned about), those without a warning (and of them, within 15 %). Cases scored
-    before ``param_warned`` was kept are left out."""
-    pairs = [
-        (v <= 0.15, c["param_warned"][name])
-        for c in cases
-        if "param_warned" in c
-        for name, v in c["param_rel_error"].items()
-    ]
-    return {
-        "params_outside_15pct": sum(not ok for ok, _ in pairs),
-        "params_outside_15pct_warned": sum(not ok and w for ok, w in pairs),
-        "params_unwarned": sum(not w for _, w in pairs),
-        "params_unwarned_within_15pct": sum(ok and not w for ok, w in pairs),
-    }
+def parameters_by_warning(cases) -> dict:
+    """The scored parameters counted by their warnings (:func:`warning_counts`: those
+    outside 15 % and of them warned about, those without a warning and of them within
+    15 %). Cases scored before ``param_warned`` was kept are left out."""
+    return warning_counts(
+        [
+            (v <= 0.15, c["param_warned"][name])
+            for c in cases
+            if "param_warned" in c
+            for name, v in c["param_rel_error"].items()
+        ]
+    )
 
 
 def stage_seconds(timings: dict) -> dict:
@@ -307,7 +304,7 @@ def main() -> None:
         "outside_cases": len(cases) - len(library),
         "params_within_15pct": sum(v <= 0.15 for c in cases for v in c["param_rel_error"].values()),
         "params": sum(len(c["param_rel_error"]) for c in cases),
-        **warning_counts(cases),
+        "param_warnings": parameters_by_warning(cases),
         "max_diagnose_s": max(c["diagnose_s"] for c in cases),
         "over_goal_s": sorted(n for n, c in record["cases"].items() if c["diagnose_s"] > GOAL_S),
     }

@@ -218,6 +218,19 @@ def score_case(diagnosis: dict, truth_params: dict) -> dict:
     return out
 
 
+def warning_counts(pairs: list[tuple[bool, bool]]) -> dict:
+    """Parameters counted by their warnings, from ``(within the goal, warned about)``
+    per parameter: ``n_params``, ``n_outside_goal`` and of those
+    ``n_outside_goal_warned``, ``n_unwarned`` and of those ``n_unwarned_within_goal``."""
+    return {
+        "n_params": len(pairs),
+        "n_outside_goal": sum(not ok for ok, _ in pairs),
+        "n_outside_goal_warned": sum(not ok and w for ok, w in pairs),
+        "n_unwarned": sum(not w for _, w in pairs),
+        "n_unwarned_within_goal": sum(ok and not w for ok, w in pairs),
+    }
+
+
 def summarize(scores: dict[str, dict]) -> dict:
     """Confusion matrix, recovery errors, false alarms, flagged out-of-library cases.
 
@@ -282,13 +295,7 @@ def summarize(scores: dict[str, dict]) -> dict:
         "param_within_goal": within,
         "n_params_in_interval": int(sum(hits)),
         "n_params_scored": len(hits),
-        "param_warnings": {
-            "n_params": len(warned),
-            "n_outside_goal": sum(not ok for ok, _ in warned),
-            "n_outside_goal_warned": sum(not ok and w for ok, w in warned),
-            "n_unwarned": sum(not w for _, w in warned),
-            "n_unwarned_within_goal": sum(ok and not w for ok, w in warned),
-        },
+        "param_warnings": warning_counts(warned),
         "combinations": {
             name: {"true": sc["true"], "selected": sc["selected"], "set_right": sc["set_right"]}
             for name, sc in scores.items()

@@ -13,8 +13,10 @@ Measures, prints and writes ``benchmarks/results/independent.json`` (with ``--se
 the diagnosis's own seed, ``independent_seedN.json``: a check that an answer is not one
 seed's luck).
 Run: ``python benchmarks/bench_independent.py [--only NAME ...] [--workers 2] [--seed 0]
-[--diagnoses DIR]`` (``--diagnoses``: keep each case's diagnosis JSON there, to score
-it again later).
+[--diagnoses DIR] [--generator compliant]`` (``--diagnoses``: keep each case's diagnosis
+JSON there, to score it again later; ``--generator compliant``: the cases of a third
+generator, ``compliant_rig.py``, a compliant contact and a loaded armature, recorded in
+``benchmarks/results/compliant.json``).
 One case (:data:`WARM_UP`) is diagnosed first, untimed, so that numba's compiling after an
 install or a source change does not land on the first case's time.
 """
@@ -35,6 +37,7 @@ from bouncelab.gap.diagnose import diagnose_run
 from bouncelab.gap.fit import warned_params
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import compliant_rig  # noqa: E402
 from bench_blind_seeds import retried  # noqa: E402
 from bench_diagnose import GOAL_S  # noqa: E402
 from bench_physics import machine_speed  # noqa: E402
@@ -162,6 +165,35 @@ CASES = {
 }  # fmt: skip
 
 
+#: Cases of the third generator, ``compliant_rig.py``: no impact map, a Kelvin-Voigt
+#: contact whose damping makes the restitution, an armature loaded by the contact force
+#: all the time (``--generator compliant``, ``benchmarks/results/compliant.json``).
+COMPLIANT_CASES = {
+    "null": {},
+    "friction": {"mu": 0.25, "seed": 2},
+    "restitution": {"e": 0.5, "seed": 3},
+    "friction_restitution": {"mu": 0.25, "e": 0.5, "seed": 1},
+    # a soft pad: 1 ms in contact, 0.19 rad of drive phase at 30 Hz, while the plate moves
+    "restitution_soft_1ms": {"e": 0.45, "contact_s": 1e-3, "seed": 4},
+    "gamma_scale": {"s": 0.93, "g1": 5.0, "seed": 5},
+    "harmonic_k3": {"g1": 6.0, "a": 0.06, "k": 3.0, "psi": 1.0, "seed": 6},
+    "feedback_loaded": {"mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.05, "seed": 7},
+    "seed_like": {
+        "mu": 0.29, "e": 0.5, "mass_ratio": 0.04, "f_ratio": 0.6, "zeta": 0.04, "seed": 8,
+    },
+    "restitution_25hz_csv_high": {
+        "f": 25.0, "e": 0.4, "format": "csv", "contact_high": True, "seed": 9,
+    },
+    # outside the library: a Hertzian contact, e 0.96 at 1 cm/s, 0.40 at 0.3 m/s, 0.14 at 1 m/s
+    "hertzian_contact": {"hertz": True, "e": 0.4, "seed": 10},
+}  # fmt: skip
+
+#: generator name -> (its cases, its make_case, the record's file stem)
+GENERATORS = {
+    "independent": (CASES, make_case, "independent"),
+    "compliant": (COMPLIANT_CASES, compliant_rig.make_case, "compliant"),
+}
+
 #: The case diagnosed once, untimed, before the others: the quickest (8 s warm).
 WARM_UP = "friction_six_steps"
 
@@ -173,12 +205,15 @@ def score(truth: dict, diag: dict) -> dict:
     kicks the armature (its ``e`` is the rigid-plate restitution), the model's impact is
     a two-body one: beside the armature the generator's ``e`` is compared with the
     diagnosis's ``e_rigid_plate`` (docs/diagnosis.md section 1), and the model's own
-    ``e`` is kept as ``e_two_body`` in ``other_errors``."""
+    ``e`` is kept as ``e_two_body`` in ``other_errors``. A truth whose
+    ``restitution_frame`` is ``two_body`` (``compliant_rig.py``: the contact pushes the
+    armature as it pushes the body) is compared with the model's ``e``."""
     true = truth["effects"]
     last = diag["steps"][-1] if diag["steps"] else {}
     fitted = last.get("params", {})
     compared, other = dict(fitted), {}
-    if "e_rigid_plate" in last and "e" in true.get("restitution", {}):
+    rigid = truth.get("restitution_frame", "rigid_plate") == "rigid_plate"
+    if rigid and "e_rigid_plate" in last and "e" in true.get("restitution", {}):
         other["e_two_body"] = abs(fitted["e"] / true["restitution"]["e"] - 1.0)
         compared["e"] = last["e_rigid_plate"]
     errors = {}
@@ -257,12 +292,17 @@ def main() -> None:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=0, help="the diagnosis's seed (default 0)")
     p.add_argument("--diagnoses", default=None, help="folder to keep each diagnosis JSON in")
+    p.add_argument(
+        "--generator", choices=sorted(GENERATORS), default="independent",
+        help="independent_rig.py (default) or compliant_rig.py, each with its own cases",
+    )  # fmt: skip
     args = p.parse_args()
     keep = Path(args.diagnoses) if args.diagnoses else None
     if keep:
         keep.mkdir(parents=True, exist_ok=True)
-    names = args.only or list(CASES)
-    out = OUT if args.seed == 0 else OUT.with_name(f"independent_seed{args.seed}.json")
+    cases_of, make, stem = GENERATORS[args.generator]
+    names = args.only or list(cases_of)
+    out = OUT.with_name(f"{stem}.json" if args.seed == 0 else f"{stem}_seed{args.seed}.json")
     record = json.loads(out.read_text()) if out.exists() and args.only else {"cases": {}}
     with tempfile.TemporaryDirectory() as tmp:
         # untimed: numba compiles the kernels at their first use after an install or a
@@ -273,7 +313,7 @@ def main() -> None:
         for name in names:
             run_dir = Path(tmp) / name
             t0 = time.perf_counter()
-            make_case(run_dir, **CASES[name])
+            make(run_dir, **cases_of[name])
             t1 = time.perf_counter()
             diag = diagnose_run(
                 run_dir, workers=args.workers, seed=args.seed, progress=False, include_timings=True
@@ -310,6 +350,7 @@ def main() -> None:
     }
     record["machine"] = {"cpus": platform.machine(), "python": platform.python_version()}
     record["diagnosis_seed"] = args.seed
+    record["generator"] = args.generator
     out.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
     print(json.dumps(record["summary"]))
 

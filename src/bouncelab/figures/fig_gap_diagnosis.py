@@ -67,7 +67,10 @@ def make(diagnosis: dict):
     ax.set_ylabel("gap per step (rad)")
     sel = ", ".join(diagnosis["selected"]) or "nothing"
     verdict = "unexplained" if diagnosis["unexplained"] else "explained"
-    ax.set_title(f"{diagnosis['run']}: selected {sel} ({verdict}); open markers held out")
+    # the padding leaves a line above the axes for the regions' names, drawn there
+    ax.set_title(
+        f"{diagnosis['run']}: selected {sel} ({verdict}); open markers held out", pad=12
+    )
     ax.legend(loc="lower right", ncol=2)
     fig.tight_layout()
     data = {

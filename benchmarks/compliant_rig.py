@@ -87,14 +87,16 @@ def _rates(t, st, t0, amp0, amp_rate, w, hk, ha, hpsi, mu, k_c, c_c, hertz, m_ra
 
 @numba.njit(cache=True)
 def integrate(t_end, dt, w, ramp_t, amp_t, amp_v, mu, k_c, c_c, hertz, hk, ha, hpsi,
-              m_ratio, wn, zeta, fs):  # fmt: skip
+              m_ratio, wn, zeta, fs, y0=0.0, t_release=0.0):  # fmt: skip
     """Contact state (1.0 closed) at each sample instant ``i / fs``, shape (n,), and the
     number of contacts begun. SI units. ``amp_t``/``amp_v``: the commanded amplitude (m)
-    reached at each time (s), ramped linearly over the ``ramp_t`` (s) before it."""
+    reached at each time (s), ramped linearly over the ``ramp_t`` (s) before it. The body
+    starts at rest ``y0`` (m) above the plate, held there until ``t_release`` (s): a drop
+    test (0: at rest on the plate from the start)."""
     n_out = int(t_end * fs)
     out = np.zeros(n_out, dtype=np.float32)
     xp, _ = _plate(0.0, amp_v[0], 0.0, w, hk, ha, hpsi)
-    st = np.array([xp, 0.0, 0.0, 0.0])  # the body at rest on the plate
+    st = np.array([xp + y0, 0.0, 0.0, 0.0])
     k1 = np.zeros(4)
     k2 = np.zeros(4)
     k3 = np.zeros(4)
@@ -108,6 +110,10 @@ def integrate(t_end, dt, w, ramp_t, amp_t, amp_v, mu, k_c, c_c, hertz, hk, ha, h
     h = 0.5 * dt
     for i in range(n_steps):
         t = i * dt
+        if t < t_release:  # held above the plate: the circuit open
+            while nxt < n_out and nxt <= t * fs:
+                nxt += 1
+            continue
         while j + 1 < amp_t.shape[0] and t >= amp_t[j + 1]:
             j += 1
         # linear in time over the ramp_t before the next step starts (never beyond it)
@@ -283,6 +289,62 @@ def make_case(out: Path, **opt) -> dict:
     }
     out.with_name(out.name + ".truth.json").write_text(json.dumps(truth, indent=1) + "\n")
     truth["impacts"] = int(n_contacts)
+    return truth
+
+
+DROP_DEFAULTS = {
+    "mu": 0.29, "e": 0.515, "contact_s": 1e-4, "h": 0.05, "release_t_s": 0.2,
+    "duration_s": 1.5, "fs": 20000.0, "noise_v": 0.02, "format": "wav", "seed": 1, "dt": 2e-6,
+}  # fmt: skip
+
+
+def make_drop(out: Path, **opt) -> dict:
+    """Write one drop-test run folder ``out`` (CONTRACTS.md section 1, ``kind: drop``; the
+    plate still, the body released from ``h`` m at ``release_t_s``) and
+    ``out.truth.json``; returns the truth (``mu``, ``e``)."""
+    o = dict(DROP_DEFAULTS, **opt)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    k_c, c_c = contact_for(o["e"], o["contact_s"], o["dt"])
+    contact, n_contacts = integrate(
+        o["duration_s"], o["dt"], 1.0, 1.0, np.zeros(1), np.zeros(1), o["mu"], k_c, c_c,
+        False, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, o["fs"], o["h"], o["release_t_s"],
+    )  # fmt: skip
+    rng = np.random.default_rng(o["seed"])
+    volts = 2.5 * (1.0 - contact) + rng.normal(0.0, o["noise_v"], contact.size)
+    spec = {
+        "format_version": 1,
+        "kind": "drop",
+        "sample_rate_hz": int(o["fs"]),
+        "mass_kg": MASS_KG,
+        "drop_height_m": o["h"],
+        "release_t_s": o["release_t_s"],
+        "contact_level": "low",
+        "description": "compliant-contact generator, drop test (benchmarks/compliant_rig.py)",
+    }
+    if o["format"] == "csv":
+        import pandas as pd
+
+        spec["recording"] = "drop.csv"
+        spec["channels"] = {"continuity": "cont_v"}
+        time_s = np.arange(contact.size) / o["fs"]
+        pd.DataFrame({"time_s": time_s, "cont_v": volts}).to_csv(
+            out / "drop.csv", index=False, float_format="%.9g"
+        )
+    else:
+        spec["recording"] = "drop.wav"
+        spec["channels"] = {"continuity": 0}
+        spec["full_scale_v"] = 4.0
+        sf.write(out / "drop.wav", volts / 4.0, int(o["fs"]), subtype="PCM_16")
+    (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    truth = {
+        "mu": o["mu"],
+        "e": bounce_once(0.5, k_c, c_c, False, o["dt"] / 20)[0],
+        "contact_time_s": bounce_once(0.5, k_c, c_c, False, o["dt"] / 20)[1],
+        "contacts": int(n_contacts),
+        "options": o,
+    }
+    out.with_name(out.name + ".truth.json").write_text(json.dumps(truth, indent=1) + "\n")
     return truth
 
 

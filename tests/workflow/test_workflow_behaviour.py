@@ -86,6 +86,20 @@ def test_dropped_in_run_and_broken_run(tmp_path):
     html = (work / "results" / "report" / "report.html").read_text()
     assert 'id="run-new_sweep"' in html
 
+    # drop in a drop test of another body, first by name and sharing no prefix: it must not
+    # take over the sweeps' calibration (it did: every sweep's models and diagnosis reran)
+    other = work / "raw" / "a_lighter_body_drop"
+    shutil.copytree(REPO / "raw" / "drop_test", other)
+    spec = (other / "run.yaml").read_text()
+    assert "mass_kg: 0.249" in spec
+    (other / "run.yaml").write_text(spec.replace("mass_kg: 0.249", "mass_kg: 0.2"))
+    out = snakemake(work)
+    jobs = executed_jobs(out.stdout + out.stderr)
+    foreign = [(r, w) for r, w in jobs if w and "run=a_lighter_body_drop" not in w]
+    assert not foreign, f"jobs of other runs reran: {foreign}"
+    assert ("calibrate", "run=a_lighter_body_drop") in jobs
+    shutil.rmtree(other)
+
     # a broken run: its own job fails with its error, the rest and the report build
     broken = work / "raw" / "broken_run"
     shutil.copytree(REPO / "raw" / "accel_g2-4", broken)

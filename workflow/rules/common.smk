@@ -63,8 +63,21 @@ def run_diagnosable(run):
     return not check_verdict(run).get("no_diagnosis")
 
 
+def _mass_kg(meta):
+    """A run's stated mass_kg as a float, or None (absent or not a number)."""
+    try:
+        return float(meta.get("mass_kg"))
+    except (TypeError, ValueError):
+        return None
+
+
 def calibration_run_for(sweep):
-    """The drop run whose calibration feeds this sweep's models, or None."""
+    """The drop run whose calibration feeds this sweep's models, or None: pinned, else
+    among the drop runs of the sweep's body (the same mass_kg, when stated; all drop runs
+    when none is) the one sharing the longest name prefix, the first by name on a tie.
+    Why the body first: a drop test of another body dropped into raw/ must not take over
+    the runs calibrated before it (it did, being first by name with no prefix shared).
+    """
     cal = config.get("calibration", {})
     if cal.get("source", "auto") == "none":
         return None
@@ -73,6 +86,9 @@ def calibration_run_for(sweep):
         return pinned
     if not DROPS:
         return None
+    mass = _mass_kg(RUNS[sweep])
+    # the same number as stated (0.249 and 0.2490 parse to one float)
+    same_body = [d for d in DROPS if mass is not None and _mass_kg(RUNS[d]) == mass]
 
     def shared_prefix(drop):
         n = 0
@@ -82,7 +98,7 @@ def calibration_run_for(sweep):
             n += 1
         return n
 
-    return max(sorted(DROPS), key=shared_prefix)
+    return max(sorted(same_body or DROPS), key=shared_prefix)
 
 
 def calibration_input(wildcards):

@@ -24,7 +24,9 @@ fixed-step RK4 (``dt`` = 2 us, 50 steps in a 100-us contact):
 
 Use: ``python benchmarks/compliant_rig.py OUT_DIR [--mu 0.2 --e 0.4 ...]`` writes
 ``OUT_DIR/run.yaml`` and the recording, and ``OUT_DIR.truth.json`` beside it (never
-inside). ``bench_independent.py --generator compliant`` diagnoses a set of such cases.
+inside). ``bench_independent.py --generator compliant`` diagnoses a set of such cases;
+:func:`make_drop` writes a drop test (the body released above the still plate), which
+``bench_compliant_drop.py`` calibrates.
 """
 
 from __future__ import annotations

@@ -110,9 +110,10 @@ def bootstrap_ci(data, h_m, g, mu, e, resid, n_boot: int, seed: int):
 def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dict:
     """Friction ``mu`` and restitution ``e`` of a drop run, with 95 % bootstrap intervals.
 
-    Returns the CONTRACTS.md section 4 dict plus ``t_fall_s``, ``flights_s`` (the fitted
-    bounce flights), ``residuals_s``, ``ratio`` (r), ``g_m_s2``, ``drop_height_m``,
-    ``n_boot``, ``seed``.
+    Returns the CONTRACTS.md section 4 dict plus ``run`` (the drop run's id, so that a
+    diagnosis and the report can say whose calibration they show), ``t_fall_s``,
+    ``flights_s`` (the fitted bounce flights), ``residuals_s``, ``ratio`` (r),
+    ``g_m_s2``, ``drop_height_m``, ``n_boot``, ``seed``.
 
     Raises
     ------
@@ -175,4 +176,5 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
         "drop_height_m": h,
         "n_boot": int(n_boot),
         "seed": int(seed),
+        "run": str(run.run_id),
     }

@@ -118,7 +118,7 @@ def test_deterministic_and_calibration_fixed(null_case):
 
     flights = read_table(flights_path)
     run = load_run(run_dir)
-    cal = {"mu": 0.05, "restitution": 0.3}
+    cal = {"mu": 0.05, "restitution": 0.3, "run": "drop_a"}
     kw = {"seed": 0, "fit_settings": FAST, "workers": 1, "progress": False}
     a = diagnose_flights(run, flights, duration_s(), calibration=cal, fix_calibration=True, **kw)
     b = diagnose_flights(run, flights, duration_s(), calibration=cal, fix_calibration=True, **kw)
@@ -128,6 +128,7 @@ def test_deterministic_and_calibration_fixed(null_case):
     rest = next(c for c in a["candidates"] if c["effect"] == "restitution")
     assert rest["params"]["e"] == 0.3
     assert a["calibration"]["fixed"] is True and a["calibration"]["mu"] == 0.05
+    assert a["calibration"]["run"] == "drop_a"  # whose calibration, for the report
 
 
 def test_a_drive_channel_off_the_stated_frequency_is_a_warning(

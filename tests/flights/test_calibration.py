@@ -57,6 +57,7 @@ def test_cli_json_and_determinism(make_rig, tmp_path):
         outs.append((tmp_path / name).read_text())
     assert outs[0] == outs[1]  # seeded bootstrap: same bytes
     cal = json.loads(outs[0])
+    assert cal["run"] == "drop_0.29_0.515"  # whose calibration it is, for the diagnosis
     for key in ("mu", "mu_ci", "restitution", "restitution_ci", "n_bounces"):
         assert key in cal
     assert isinstance(cal["n_bounces"], int) and len(cal["mu_ci"]) == 2

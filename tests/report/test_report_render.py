@@ -227,6 +227,10 @@ def test_accepted_effects_caption_shows_the_accelerometer_beside_the_drop_test(t
     del diag["accel_calibration"]
     (run / "diagnosis.json").write_text(json.dumps(diag))
     assert caption() == "Effects accepted, in order (drop-test calibration: -)"
+    # the drop run whose calibration it is, when the calibration names it
+    diag["calibration"] = {"mu": 0.29, "restitution": 0.515, "run": "drop_test"}
+    (run / "diagnosis.json").write_text(json.dumps(diag))
+    assert caption().startswith("Effects accepted, in order (drop-test calibration of drop_test: ")
 
 
 def test_blind_table_says_whether_the_misses_were_warned_about(tmp_path):

@@ -74,7 +74,7 @@ def _mass_kg(meta):
 def calibration_run_for(sweep):
     """The drop run whose calibration feeds this sweep's models, or None: pinned, else
     among the drop runs of the sweep's body (the same mass_kg, when stated; all drop runs
-    when none is) the one sharing the longest name prefix, the first by name on a tie.
+    when none matches) the one sharing the longest name prefix, the first by name on a tie.
     Why the body first: a drop test of another body dropped into raw/ must not take over
     the runs calibrated before it (it did, being first by name with no prefix shared).
     """

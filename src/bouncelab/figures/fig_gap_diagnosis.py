@@ -68,9 +68,7 @@ def make(diagnosis: dict):
     sel = ", ".join(diagnosis["selected"]) or "nothing"
     verdict = "unexplained" if diagnosis["unexplained"] else "explained"
     # the padding leaves a line above the axes for the regions' names, drawn there
-    ax.set_title(
-        f"{diagnosis['run']}: selected {sel} ({verdict}); open markers held out", pad=12
-    )
+    ax.set_title(f"{diagnosis['run']}: selected {sel} ({verdict}); open markers held out", pad=12)
     ax.legend(loc="lower right", ncol=2)
     fig.tight_layout()
     data = {

@@ -636,6 +636,8 @@ def diagnose_flights(
             "restitution_ci": calibration.get("restitution_ci"),
             "fixed": bool(fix_calibration),
         }
+        if calibration.get("run") is not None:  # calibrate writes its drop run's id
+            out["calibration"]["run"] = str(calibration["run"])
     if include_timings:
         out["timings"] = diagnosis_timings(time.perf_counter() - t0, sel["fit_log"])
     return _json_safe(out)

@@ -337,6 +337,7 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
             {"type": "text", "text": "Warnings: " + "; ".join(map(str, run_warnings)) + "."}
         )
     cal = diag.get("calibration") or {}
+    cal_of = f" of {cal['run']}" if cal.get("run") else ""  # the drop run, where named
     cal_text = (
         _params_text(
             {"mu": cal.get("mu"), "e": cal.get("restitution")},
@@ -362,7 +363,8 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
         blocks.append(
             {
                 "type": "table",
-                "caption": f"Effects accepted, in order (drop-test calibration: {cal_text}"
+                "caption": f"Effects accepted, in order (drop-test calibration{cal_of}: "
+                + cal_text
                 + _accel_text(diag.get("accel_calibration"))
                 + ")",
                 "header": [

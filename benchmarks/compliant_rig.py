@@ -321,6 +321,7 @@ def make_drop(out: Path, **opt) -> dict:
         "mass_kg": MASS_KG,
         "drop_height_m": o["h"],
         "release_t_s": o["release_t_s"],
+        "g_m_s2": G,  # the generator's gravity (calibrate assumes 9.80665 without it)
         "contact_level": "low",
         "description": "compliant-contact generator, drop test (benchmarks/compliant_rig.py)",
     }

@@ -197,6 +197,33 @@ def contact_for(e: float, contact_s: float, dt: float, hertz: bool = False,
     return k_c, 0.5 * (lo + hi)
 
 
+#: the CSV recording's column of each channel role
+CSV_COLUMNS = {"continuity": "cont_v", "drive": "drive_v"}
+
+
+def write_run(out: Path, spec: dict, stem: str, fmt: str, fs: float, channels: dict) -> None:
+    """Write the recording ``out/<stem>.wav`` (16-bit, full scale 4 V) or ``.csv`` (with
+    ``time_s``) of ``channels`` (role -> volts, shape (n,) each, continuity first) and
+    ``out/run.yaml`` of ``spec`` with its ``recording`` and ``channels`` keys added."""
+    if fmt == "csv":
+        import pandas as pd
+
+        spec["recording"] = f"{stem}.csv"
+        spec["channels"] = {role: CSV_COLUMNS[role] for role in channels}
+        n = len(next(iter(channels.values())))
+        columns = {"time_s": np.arange(n) / fs}
+        columns |= {CSV_COLUMNS[role]: v for role, v in channels.items()}
+        pd.DataFrame(columns).to_csv(out / f"{stem}.csv", index=False, float_format="%.9g")
+    else:
+        spec["recording"] = f"{stem}.wav"
+        spec["channels"] = {role: i for i, role in enumerate(channels)}
+        spec["full_scale_v"] = 4.0
+        volts = np.stack(list(channels.values()), axis=1)
+        sf.write(out / f"{stem}.wav", (volts[:, 0] if volts.shape[1] == 1 else volts) / 4.0,
+                 int(fs), subtype="PCM_16")  # fmt: skip
+    (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+
+
 DEFAULTS = {
     "f": 30.0, "fs": 20000.0, "g0": 0.0, "g1": 4.0, "dg": 0.05, "step_s": 2.0,
     "ramp_cycles": 1.0, "mu": 0.0, "e": 0.0, "contact_s": 1e-4, "hertz": False,
@@ -251,21 +278,7 @@ def make_case(out: Path, **opt) -> dict:
         "contact_level": "high" if o["contact_high"] else "low",
         "description": "compliant-contact generator (benchmarks/compliant_rig.py)",
     }
-    if o["format"] == "csv":
-        import pandas as pd
-
-        spec["recording"] = "rec.csv"
-        spec["channels"] = {"continuity": "cont_v", "drive": "drive_v"}
-        pd.DataFrame({"time_s": time_s, "cont_v": volts, "drive_v": drive}).to_csv(
-            out / "rec.csv", index=False, float_format="%.9g"
-        )
-    else:
-        spec["recording"] = "rec.wav"
-        spec["channels"] = {"continuity": 0, "drive": 1}
-        spec["full_scale_v"] = 4.0
-        sf.write(out / "rec.wav", np.stack([volts, drive], axis=1) / 4.0, int(o["fs"]),
-                 subtype="PCM_16")  # fmt: skip
-    (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    write_run(out, spec, "rec", o["format"], o["fs"], {"continuity": volts, "drive": drive})
     effects: dict = {}
     if o["mu"] > 0:
         effects["friction"] = {"mu": o["mu"]}
@@ -325,21 +338,7 @@ def make_drop(out: Path, **opt) -> dict:
         "contact_level": "low",
         "description": "compliant-contact generator, drop test (benchmarks/compliant_rig.py)",
     }
-    if o["format"] == "csv":
-        import pandas as pd
-
-        spec["recording"] = "drop.csv"
-        spec["channels"] = {"continuity": "cont_v"}
-        time_s = np.arange(contact.size) / o["fs"]
-        pd.DataFrame({"time_s": time_s, "cont_v": volts}).to_csv(
-            out / "drop.csv", index=False, float_format="%.9g"
-        )
-    else:
-        spec["recording"] = "drop.wav"
-        spec["channels"] = {"continuity": 0}
-        spec["full_scale_v"] = 4.0
-        sf.write(out / "drop.wav", volts / 4.0, int(o["fs"]), subtype="PCM_16")
-    (out / "run.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    write_run(out, spec, "drop", o["format"], o["fs"], {"continuity": volts})
     truth = {
         "mu": o["mu"],
         "e": bounce_once(0.5, k_c, c_c, False, o["dt"] / 20)[0],

@@ -13,10 +13,10 @@ from bouncelab.cli import main
 from bouncelab.gap.seeds import RETRIES, retry_index, retry_warning, seed_check
 
 
-def _result(seed, selected, unexplained=False, rel_gap=0.8, n_heldout=10):
+def _result(seed, selected, unexplained=False, rel_gap=0.8, n_heldout=10, borderline=False):
     """The keys of a diagnosis that the retry and the command line read."""
     return {
-        "verdict_margin": {"rel_gap": rel_gap, "n_heldout": n_heldout, "borderline": False},
+        "verdict_margin": {"rel_gap": rel_gap, "n_heldout": n_heldout, "borderline": borderline},
         "design": {"seed": seed},
         "selected": selected,
         "unexplained": unexplained,
@@ -41,6 +41,25 @@ def test_the_first_explained_is_reported_else_the_first():
     assert retry_index([u0, u1, e2]) == 2
     with pytest.raises(ValueError):
         retry_index([])
+
+
+def test_a_retry_explained_on_a_borderline_verdict_is_not_reported():
+    """A second draw within one standard error of the limit is a lottery won (the
+    compliant Hertzian contact at diagnosis seed 1: explained by its retry at 2.45 +-
+    0.62 floors, an armature standing in for the contact): the first seed's diagnosis
+    stands, with a warning. A first seed explained on a borderline verdict is reported
+    as before: it is no retry."""
+    u0 = _result(0, ["restitution", "feedback"], True, 2.25)
+    b1 = _result(1, ["restitution", "feedback"], False, 2.45, borderline=True)
+    e2 = _result(2, ["restitution", "feedback", "friction"], False, 1.2)
+    assert retry_index([u0, b1]) == 0
+    assert retry_index([u0, b1, e2]) == 2
+    assert retry_index([_result(0, ["friction"], False, 2.9, borderline=True)]) == 0
+    check = seed_check([u0, b1], 0)
+    assert check["diagnoses"][1]["borderline"] is True
+    warning = retry_warning(check)
+    assert warning.startswith("seed 1: restitution + feedback, explained at 2.45 noise floors")
+    assert "not reported, seed 0's unexplained diagnosis stands" in warning
 
 
 def test_the_warning_names_both_conclusions_only_when_a_retry_is_reported():
@@ -87,6 +106,35 @@ def test_an_unexplained_run_is_retried_and_the_explained_retry_reported(null_run
     assert r["design"]["seed"] == 4 and not r["unexplained"]
     assert r["retry"]["seeds"] == [3, 4] and r["retry"]["reported_seed"] == 4
     assert r["warnings"] == [retry_warning(r["retry"])]
+
+
+def test_a_borderline_retry_is_followed_by_the_next(null_run, stand_in, monkeypatch):
+    """With room for more retries, one that explains the run on a borderline verdict is
+    not the end: the next seed is tried, and reported when it explains the run."""
+    import bouncelab.gap.diagnose as diag
+
+    fake = diag.diagnose_flights
+
+    def with_borderline(*a, seed, **kw):
+        r = fake(*a, seed=seed, **kw)
+        r["verdict_margin"]["borderline"] = seed == 1
+        return r
+
+    monkeypatch.setattr(diag, "diagnose_flights", with_borderline)
+    run_dir, flights = null_run
+    stand_in["unexplained"] = {0: True}
+    r = diag.diagnose_run(run_dir, flights=flights, retries=2, progress=False)
+    assert stand_in["calls"] == [0, 1, 2] and r["design"]["seed"] == 2
+    stand_in["calls"].clear()
+    r = diag.diagnose_run(run_dir, flights=flights, retries=1, progress=False)
+    assert stand_in["calls"] == [0, 1] and r["design"]["seed"] == 0 and r["unexplained"]
+    (warning,) = r["warnings"]
+    assert warning == retry_warning(r["retry"]) and "within one standard error" in warning
+    from bouncelab.cli.diagnose import summary_line
+
+    assert summary_line("d.json", r).endswith(
+        "retried with 1 more seed(s), explained only on a borderline verdict (seed 1), not reported"
+    )
 
 
 def test_retries_stop_at_the_limit_and_keep_the_first(null_run, stand_in):

@@ -176,6 +176,11 @@ def test_diagnosis_text_says_whether_the_seeds_agree(tmp_path):
     assert "Seed 0 left the gap unexplained; shown is seed 1's diagnosis" in text
     text = verdict_text({**diag, "retry": {"seeds": [0, 1], "reported_seed": 0}})
     assert "Seed 0 left the gap unexplained, and so did 1 more seed(s)." in text
+    # a retry that explained the run on a borderline verdict, not shown
+    rows = [{"seed": 0, "unexplained": True}, {"seed": 1, "unexplained": False}]
+    retry = {"seeds": [0, 1], "reported_seed": 0, "diagnoses": rows}
+    text = verdict_text({**diag, "retry": retry})
+    assert "seed 1 explained it only on a borderline verdict, not shown" in text
 
 
 def test_accepted_effects_caption_shows_the_accelerometer_beside_the_drop_test(tmp_path):

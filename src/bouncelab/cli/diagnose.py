@@ -143,6 +143,8 @@ def timings_line(timings: dict) -> str:
 def summary_line(out: Path, result: dict) -> str:
     """The one line the command prints: what was selected, the gap before and after, the
     verdict, and its margin when the verdict is borderline (``verdict_margin``)."""
+    from bouncelab.gap.seeds import borderline_retries
+
     sel = ", ".join(result["selected"]) or "nothing"
     verdict = "unexplained" if result["unexplained"] else "explained"
     margin = result.get("verdict_margin") or {}
@@ -163,11 +165,16 @@ def summary_line(out: Path, result: dict) -> str:
     retry = result.get("retry")
     if retry is not None:
         first = retry["seeds"][0]
-        verdict += (
-            f"; retried with {len(retry['seeds']) - 1} more seed(s), none explains it"
-            if retry["reported_seed"] == first
-            else f" by seed {retry['reported_seed']} (seed {first} left it unexplained)"
-        )
+        if retry["reported_seed"] != first:
+            verdict += f" by seed {retry['reported_seed']} (seed {first} left it unexplained)"
+        elif borderline_retries(retry):
+            seeds = ", ".join(str(r["seed"]) for r in borderline_retries(retry))
+            verdict += (
+                f"; retried with {len(retry['seeds']) - 1} more seed(s), explained only on a "
+                f"borderline verdict (seed {seeds}), not reported"
+            )
+        else:
+            verdict += f"; retried with {len(retry['seeds']) - 1} more seed(s), none explains it"
     return (
         f"wrote {out}: selected {sel}; gap {result['baseline']['gap']:.4g} -> "
         f"{result['final_gap']:.4g} rad (noise floor {result['noise_floor']:.4g}), {verdict}"

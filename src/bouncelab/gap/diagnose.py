@@ -875,9 +875,10 @@ def diagnose_run(
     retries : with one seed (``check_seeds`` 1), when the diagnosis leaves the gap
         unexplained (on enough held-out steps, :func:`worth_a_retry`), diagnose again with
         ``seed + 1``, ... up to this many times and report the first that explains the run
-        (:func:`bouncelab.gap.seeds.retry_index`), with ``retry`` (the
-        :func:`bouncelab.gap.seeds.seed_check` of the seeds tried) and a warning; when none
-        does, the first seed's diagnosis, with ``retry``. Each retry costs a whole
+        not on a borderline verdict (:func:`bouncelab.gap.seeds.retry_index`), with
+        ``retry`` (the :func:`bouncelab.gap.seeds.seed_check` of the seeds tried) and a
+        warning; when none does, the first seed's diagnosis, with ``retry`` (and a warning
+        where a retry explained the run on a borderline verdict). Each retry costs a whole
         diagnosis, only on runs left unexplained; 0: never.
     fix_accel : hold what the run's accelerometer reads (:func:`accel_calibration`,
         :func:`accel_fixed`) as ``fix_calibration`` holds ``mu`` and ``e``:
@@ -960,13 +961,19 @@ def diagnose_run(
         if disagreement:
             result["warnings"].append(disagreement)
     else:
-        # a search that left the gap unexplained is searched again with other draws
-        # (docs/diagnosis.md section 1, "Retries of an unexplained run")
-        while worth_a_retry(results[-1]) and len(results) <= retries:
+        # a search that left the gap unexplained is searched again with other draws until
+        # one explains it, not on a borderline verdict (docs/diagnosis.md section 1,
+        # "Retries of an unexplained run")
+        while worth_a_retry(results[0]) and retry_index(results) == 0 and len(results) <= retries:
             if shown:
+                how = (
+                    "left the gap unexplained"
+                    if results[-1]["unexplained"]
+                    else "explained the run on a borderline verdict"
+                )
                 print(
-                    f"seed {seed + len(results) - 1} left the gap unexplained: diagnosis "
-                    f"with seed {seed + len(results)} (retry {len(results)} of {retries})",
+                    f"seed {seed + len(results) - 1} {how}: diagnosis with seed "
+                    f"{seed + len(results)} (retry {len(results)} of {retries})",
                     file=sys.stderr,
                 )
             results.append(diagnosis(seed + len(results)))

@@ -22,6 +22,7 @@ import yaml
 from bouncelab import __version__
 from bouncelab.energy import seed_energy_reconstruction
 from bouncelab.gap.diagnose import step_warning
+from bouncelab.gap.seeds import borderline_retries
 from bouncelab.report.claims import claims_table
 from bouncelab.report.errata import ERRATA
 
@@ -233,6 +234,14 @@ def _retry_text(retry: dict | None) -> str:
     first, shown = retry["seeds"][0], retry["reported_seed"]
     if shown == first:
         n = len(retry["seeds"]) - 1
+        border = borderline_retries(retry)
+        if border:
+            seeds = ", ".join(str(r["seed"]) for r in border)
+            return (
+                f" Seed {first} left the gap unexplained; {n} more seed(s) tried, seed "
+                f"{seeds} explained it only on a borderline verdict, not shown (see the "
+                "warnings)."
+            )
         return f" Seed {first} left the gap unexplained, and so did {n} more seed(s)."
     return (
         f" Seed {first} left the gap unexplained; shown is seed {shown}'s diagnosis, which "

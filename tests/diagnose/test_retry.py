@@ -162,6 +162,35 @@ def test_no_retry_on_a_verdict_of_few_held_out_steps(null_run, stand_in):
     assert not worth_a_retry(_result(0, [], False, 1.0, FEW_HELDOUT))
 
 
+def test_no_retry_when_the_gap_is_clearly_above_the_limit(null_run, stand_in, monkeypatch):
+    """A gap more than one standard error above the limit is no near miss of a search
+    (the rescued first seeds ended at 1.47-3.05 floors; random plate vibration at 3.53 +-
+    0.41 to 4.76 +- 0.46, where the retry never changed the verdict): not retried."""
+    import bouncelab.gap.diagnose as diag
+    from bouncelab.gap.diagnose import clearly_over, worth_a_retry
+
+    def margin(rel, se):
+        return {"rel_gap": rel, "se": se, "n_heldout": 27, "limit": 3.0, "borderline": False}
+
+    assert clearly_over(margin(3.75, 0.49)) and not clearly_over(margin(3.05, 0.4))
+    assert not clearly_over(margin(4.0, None))
+    far = {**_result(0, ["harmonic"], True, 3.75), "verdict_margin": margin(3.75, 0.49)}
+    near = {**_result(0, ["harmonic"], True, 3.05), "verdict_margin": margin(3.05, 0.4)}
+    assert not worth_a_retry(far) and worth_a_retry(near)
+    fake = diag.diagnose_flights
+
+    def far_above(*a, seed, **kw):
+        r = fake(*a, seed=seed, **kw)
+        r["verdict_margin"] = margin(3.75, 0.49)
+        return r
+
+    monkeypatch.setattr(diag, "diagnose_flights", far_above)
+    run_dir, flights = null_run
+    stand_in["unexplained"] = {0: True}
+    r = diag.diagnose_run(run_dir, flights=flights, progress=False)
+    assert stand_in["calls"] == [0] and r["unexplained"] and "retry" not in r
+
+
 def test_no_retry_with_zero_retries_or_a_seed_check(null_run, stand_in):
     from bouncelab.gap.diagnose import diagnose_run
 

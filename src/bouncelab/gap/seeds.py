@@ -26,14 +26,16 @@ from collections import Counter
 #: armature or a harmonic) 15 of 45 came out unexplained, all wrong, and the next seed
 #: explained 12 of them, 10 with the true effects: 36 of 45 verdicts right against 26
 #: (docs/diagnosis-log.md, session 42). Each retry costs a whole diagnosis, paid by
-#: every run whose cause is outside the library.
+#: the runs outside the library that end unexplained near the limit (one whose gap is
+#: clearly above it is not retried: :func:`bouncelab.gap.diagnose.worth_a_retry`).
 RETRIES = 1
 
 
 def _summary(result: dict) -> dict:
     """What one diagnosis (the dict of :func:`bouncelab.gap.diagnose.diagnose_run`)
-    concluded: its seed, selected effects, verdict, final gap in noise floors, whether
-    that verdict is borderline and the final model's parameters."""
+    concluded: its seed, selected effects, verdict, final gap in noise floors with its
+    standard error (``gap_se``, None without one), whether that verdict is borderline and
+    the final model's parameters."""
     final = result.get("final_model") or {}
     return {
         "seed": int(result["design"]["seed"]),
@@ -41,6 +43,7 @@ def _summary(result: dict) -> dict:
         "unexplained": bool(result["unexplained"]),
         "final_rel_gap": float(result["final_rel_gap"]),
         "borderline": _borderline(result),
+        "gap_se": (result.get("verdict_margin") or {}).get("se"),
         "params": {k: float(v) for k, v in (final.get("params") or {}).items()},
     }
 

@@ -167,8 +167,8 @@ def summary_line(out: Path, result: dict) -> str:
         first = retry["seeds"][0]
         if retry["reported_seed"] != first:
             verdict += f" by seed {retry['reported_seed']} (seed {first} left it unexplained)"
-        elif borderline_retries(retry):
-            seeds = ", ".join(str(r["seed"]) for r in borderline_retries(retry))
+        elif border := borderline_retries(retry):
+            seeds = ", ".join(str(r["seed"]) for r in border)
             verdict += (
                 f"; retried with {len(retry['seeds']) - 1} more seed(s), explained only on a "
                 f"borderline verdict (seed {seeds}), not reported"

@@ -37,13 +37,14 @@ def _summary(result: dict) -> dict:
     standard error (``gap_se``, None without one), whether that verdict is borderline and
     the final model's parameters."""
     final = result.get("final_model") or {}
+    margin = result.get("verdict_margin") or {}
     return {
         "seed": int(result["design"]["seed"]),
         "selected": list(result["selected"]),
         "unexplained": bool(result["unexplained"]),
         "final_rel_gap": float(result["final_rel_gap"]),
-        "borderline": _borderline(result),
-        "gap_se": (result.get("verdict_margin") or {}).get("se"),
+        "borderline": bool(margin.get("borderline")),
+        "gap_se": margin.get("se"),
         "params": {k: float(v) for k, v in (final.get("params") or {}).items()},
     }
 

@@ -767,6 +767,59 @@ def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_l
     assert [s for n, s in calls if n in ("feedback", "restitution+gamma_scale")] == [0, 0, 0]
 
 
+@pytest.mark.parametrize(
+    ("miscal_gap", "explained_ratio", "seeded"),
+    [(2.0, 2.0, False), (1.6, 2.0, True), (2.0, 1.4, True)],
+)
+def test_the_last_round_skips_the_extra_seeds_of_an_armature_that_leads_clearly(
+    monkeypatch, miscal_gap, explained_ratio, seeded
+):
+    """Reference: a scripted selection as above. Round 2's armature ends at 1.5 floors
+    (the round's search and the other ``ride_load``'s two: not settled, above one floor),
+    its extra seeds at 1.2 and 1.6. Beside a Gamma miscalibration at 2.0 it leads by 0.5
+    floors, more than the tie (0.25), within ``explained_ratio`` (2): the round takes it
+    whatever the seeds give, so they are not run and its 1.5 is final. Tied with the
+    miscalibration (1.6: 0.1 behind it), or above ``explained_ratio`` (1.4), the seeds
+    run and the second seed's 1.2 is taken (:func:`bouncelab.gap.select._armature_leads`).
+    """
+    from bouncelab.gap import select
+
+    calls = []
+    by_seed = {0: 1.5, select.SEED_STRIDE: 1.2, 2 * select.SEED_STRIDE: 1.6}
+
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
+            calls.append((name, seed))
+            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
+            if name == "restitution+feedback":
+                out.append(scripted_fit(name, {**params, "zeta": seed}, by_seed[seed]))
+            elif name == "restitution+gamma_scale":
+                out.append(scripted_fit(name, {"s": 1.05}, miscal_gap))
+            elif name == "restitution":
+                out.append(scripted_fit(name, {}, 5.0))
+            else:
+                out.append(scripted_fit(name, params if "feedback" in name else {}, 9.0))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many)
+    monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)
+    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
+        settings=select.SelectSettings(max_effects=2, explained_ratio=explained_ratio),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
+    seeds = [s for n, s in calls if n == "restitution+feedback"]
+    assert seeds[:3] == [0, 0, 0]  # the round's; the other choice: all, the armature's own
+    if seeded:
+        assert seeds[3:] == [select.SEED_STRIDE, 2 * select.SEED_STRIDE]
+        assert sel["final"].objective == 1.2
+    else:
+        assert seeds[3:] == []
+        assert sel["final"].objective == 1.5
+
+
 @pytest.mark.parametrize("other_gap, seeded", [(0.9, False), (1.4, True)])
 def test_the_last_rounds_other_ride_load_runs_before_the_extra_seeds(
     monkeypatch, other_gap, seeded

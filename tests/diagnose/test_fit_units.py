@@ -720,6 +720,30 @@ def armature_last_round(monkeypatch, fake_fit_many) -> dict:
     )  # fmt: skip
 
 
+def seeded_armature_fits(calls: list, by_seed: dict, miscal_gap: float):
+    """A scripted ``fit_many`` for :func:`armature_last_round`: restitution at 5 floors,
+    restitution plus the armature at ``by_seed[optimiser seed]``, plus a Gamma
+    miscalibration at ``miscal_gap``, anything else 9; ``(model, seed)`` of every job is
+    appended to ``calls``."""
+
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
+        out = []
+        for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
+            calls.append((name, seed))
+            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
+            if name == "restitution+feedback":
+                out.append(scripted_fit(name, {**params, "zeta": seed}, by_seed[seed]))
+            elif name == "restitution+gamma_scale":
+                out.append(scripted_fit(name, {"s": 1.05}, miscal_gap))
+            elif name == "restitution":
+                out.append(scripted_fit(name, {}, 5.0))
+            else:
+                out.append(scripted_fit(name, params if "feedback" in name else {}, 9.0))
+        return out
+
+    return fake_fit_many
+
+
 @pytest.mark.parametrize("first_seed_gap", [1.7, 0.8])
 def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_least(
     monkeypatch, first_seed_gap
@@ -738,20 +762,7 @@ def test_the_last_round_searches_the_armature_with_several_seeds_and_keeps_the_l
     calls = []
     by_seed = {0: first_seed_gap, select.SEED_STRIDE: 1.2, 2 * select.SEED_STRIDE: 1.6}
 
-    def fake_fit_many(jobs, pool=None, progress=None, work=None):
-        out = []
-        for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
-            calls.append((name, seed))
-            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
-            if name == "restitution+feedback":
-                out.append(scripted_fit(name, {**params, "zeta": seed}, by_seed[seed]))
-            elif name == "restitution+gamma_scale":
-                out.append(scripted_fit(name, {"s": 1.05}, 1.5))
-            elif name == "restitution":
-                out.append(scripted_fit(name, {}, 5.0))
-            else:
-                out.append(scripted_fit(name, params if "feedback" in name else {}, 9.0))
-        return out
+    fake_fit_many = seeded_armature_fits(calls, by_seed, miscal_gap=1.5)
 
     sel = armature_last_round(monkeypatch, fake_fit_many)
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
@@ -787,20 +798,7 @@ def test_the_last_round_skips_the_extra_seeds_of_an_armature_that_leads_clearly(
     calls = []
     by_seed = {0: 1.5, select.SEED_STRIDE: 1.2, 2 * select.SEED_STRIDE: 1.6}
 
-    def fake_fit_many(jobs, pool=None, progress=None, work=None):
-        out = []
-        for _problem, name, _base, fixed, _search, _settings, seed, *_more in jobs:
-            calls.append((name, seed))
-            params = {"ride_load": fixed.get("ride_load", 1.0), "mass_ratio": 0.04}
-            if name == "restitution+feedback":
-                out.append(scripted_fit(name, {**params, "zeta": seed}, by_seed[seed]))
-            elif name == "restitution+gamma_scale":
-                out.append(scripted_fit(name, {"s": 1.05}, miscal_gap))
-            elif name == "restitution":
-                out.append(scripted_fit(name, {}, 5.0))
-            else:
-                out.append(scripted_fit(name, params if "feedback" in name else {}, 9.0))
-        return out
+    fake_fit_many = seeded_armature_fits(calls, by_seed, miscal_gap)
 
     script_selection(monkeypatch, fake_fit_many)
     monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)

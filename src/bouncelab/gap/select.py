@@ -454,11 +454,18 @@ def _armature_contends(tried, problem: Problem, floor: float, settings: SelectSe
     (independent ``friction_restitution_harmonic``: 2.56 against 2.20, about 100 s of
     extra searches for the same selection).
     """
-    mine = dict(tried)
-    others = [heldout_gap(f, problem) for e, f in tried if e != "feedback"]
-    if "feedback" not in mine or not others:
+    if "feedback" not in dict(tried):
         return True
-    return heldout_gap(mine["feedback"], problem) - min(others) <= settings.tie * floor
+    return -_armature_lead(tried, problem) <= settings.tie * floor
+
+
+def _armature_lead(tried, problem: Problem) -> float:
+    """Held-out gap (rad) of the best other addition of ``tried`` (inert ones included:
+    their gap is the current model's, refitted) less the armature's; inf without another."""
+    others = [heldout_gap(f, problem) for e, f in tried if e != "feedback"]
+    if not others:
+        return math.inf
+    return min(others) - heldout_gap(dict(tried)["feedback"], problem)
 
 
 def _worth_searching_again(tried, problem: Problem, floor: float, settings) -> bool:
@@ -484,11 +491,8 @@ def _armature_leads(tried, problem: Problem, floor: float, settings: SelectSetti
     pick = _proposal(tried, problem, floor, settings.tie)
     if pick is None or pick[0] != "feedback":
         return False
-    mine = heldout_gap(pick[1], problem)
-    # inert additions count: their gap is the current model's, refitted (_armature_contends)
-    others = [heldout_gap(f, problem) for e, f in tried if e != "feedback"]
-    lead = min(others) - mine if others else np.inf
-    return lead > settings.tie * floor and mine <= settings.explained_ratio * floor
+    explained = heldout_gap(pick[1], problem) <= settings.explained_ratio * floor
+    return _armature_lead(tried, problem) > settings.tie * floor and explained
 
 
 def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally):

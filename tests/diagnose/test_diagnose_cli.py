@@ -106,6 +106,13 @@ def test_cli_writes_contract_json(null_case, tmp_path, monkeypatch, capsys):
     assert list(t["stages"])[:2] == ["baseline", "round 1"]
     assert sum(s["fits"] for s in t["stages"].values()) == len(t["fits"]) > 5
     assert sum(f["flights"] for f in t["fits"]) <= work
+    # each fit's log says what it reached: round 1's kept fits are the ones it reports
+    logged = [f for f in t["fits"] if f["stage"] == "round 1"]
+    for c in r["rounds"][0]:
+        assert any(
+            f["model"] == c["model"] and f["heldout_gap"] == c["gap"] and f["params"] == c["params"]
+            for f in logged
+        ), c["model"]
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith("time: ") and "seed 0 " in last and "round 1 " in last
 

@@ -1040,7 +1040,7 @@ def runner_up_selection(monkeypatch, fake_fit_many, candidates: list, **settings
     monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array([1.0, 1.1]))
     return select.forward_select(
         _OneStepProblem(), 1.0, candidates=candidates,
-        settings=select.SelectSettings(explained_ratio=0.5, **settings),
+        settings=select.SelectSettings(**{"explained_ratio": 0.5, **settings}),
     )  # fmt: skip
 
 
@@ -1108,6 +1108,48 @@ def test_after_a_harmonic_the_runner_up_is_also_fitted_from_its_own_point(monkey
     # the armature, runner-up on the gap, is fitted from the current model only
     armature_starts = [b for n, b in calls if n == "restitution+harmonic+feedback"]
     assert armature_starts and all(b["e"] == 0.35 for b in armature_starts)
+
+
+@pytest.mark.parametrize(
+    ("armature_gap", "explained_ratio", "second_start"),
+    [(1.0, 2.0, False), (2.35, 2.0, True), (1.0, 0.9, True)],
+)
+def test_the_runner_ups_second_start_is_skipped_where_the_armature_leads_clearly(
+    monkeypatch, armature_gap, explained_ratio, second_start
+):
+    """Reference: a scripted selection (floor 1). Round 1 takes restitution (10 -> 5),
+    round 2 friction beside it (-> 2.6), a harmonic the runner-up (3.0). Round 3, the
+    last, fits the armature beside them at ``armature_gap`` and the harmonic from the
+    current model (2.4). At 1.0 floors the armature leads every other addition by more
+    than the tie (0.25) and is within ``explained_ratio`` (2): the round takes it
+    whatever a second start of the harmonic gives, so the harmonic is not fitted again
+    from its own point (seed-like protocols: the second start cost 12-15 s and lost).
+    Tied with the harmonic (2.35 against 2.4), or above ``explained_ratio`` (0.9), the
+    second start runs from the runner-up's values (2.3)
+    (:func:`bouncelab.gap.select._armature_leads`)."""
+
+    calls = []
+    table = {
+        "ideal": (10.0, {}),
+        "restitution": (5.0, {"e": 0.3}),
+        "feedback": (lambda p: 8.0 if p["ride_load"] == 1.0 else 9.0, {}),
+        "friction+restitution": (2.6, {"mu": 0.2, "e": 0.5}),
+        "restitution+harmonic": (3.0, {"e": 0.35, "a": 0.06, "psi": 2.5}),
+        "restitution+feedback": (3.5, {"e": 0.5}),
+        "friction+restitution+feedback": (armature_gap, {"mu": 0.2, "e": 0.5}),
+    }
+    joint = "friction+restitution+harmonic"
+    fake = runner_up_fit_many(calls, table, joint, lambda b: 2.3 if "a" in b else 2.4)
+    candidates = ["friction", "restitution", "harmonic", "feedback"]
+    sel = runner_up_selection(monkeypatch, fake, candidates, explained_ratio=explained_ratio)
+    assert [e for e, _f in sel["accepted"]][:2] == ["restitution", "friction"]
+    starts = [b for n, b in calls if n == joint]
+    assert starts[0] == {"mu": 0.2, "e": 0.5}  # the current model
+    if second_start:
+        assert len(starts) == 2 and starts[1]["a"] == 0.06  # the runner-up's values
+    else:
+        assert len(starts) == 1
+        assert [e for e, _f in sel["accepted"]] == ["restitution", "friction", "feedback"]
 
 
 @pytest.mark.parametrize(

@@ -216,12 +216,18 @@ class WorkTally:
     #: :func:`forward_select` as it goes
     stage: str = "baseline"
     #: one entry per fit counted: ``stage``, ``model``, ``n_evals``, ``flights``,
-    #: ``seconds`` (wall clock: for ``--timings`` only, never in the deterministic keys)
+    #: ``seconds`` (wall clock: for ``--timings`` only, never in the deterministic keys),
+    #: and what the fit reached: its ``params``, fit-step ``objective`` and held-out
+    #: ``heldout_gap`` (rad; each left out where not finite: the JSON is strict)
     fits: list = field(default_factory=list)
 
-    def add(self, fits) -> None:
-        for f in fits:
+    def add(self, fits, problems=None) -> None:
+        """Count ``fits``; ``problems``: each fit's :class:`Problem`, for its held-out
+        gap in the log (None: left out)."""
+        for i, f in enumerate(fits):
             self.flights += int(f.flights)
+            held = heldout_gap(f, problems[i]) if problems is not None else math.nan
+            reached = {"objective": float(f.objective), "heldout_gap": float(held)}
             self.fits.append(
                 {
                     "stage": self.stage,
@@ -229,6 +235,8 @@ class WorkTally:
                     "n_evals": int(f.n_evals),
                     "flights": int(f.flights),
                     "seconds": float(f.seconds),
+                    "params": {k: float(v) for k, v in f.model.params.items()},
+                    **{k: v for k, v in reached.items() if math.isfinite(v)},
                 }
             )
 
@@ -268,7 +276,7 @@ def fit_many(
             bar.set_postfix_str(name, refresh=False)
             bar.update()
     if work is not None:
-        work.add(results)
+        work.add(results, [job[0] for job in jobs])
     return results
 
 
@@ -361,11 +369,18 @@ def _k_held_again(tried, prev: dict, job, pool, progress, work: WorkTally, read=
     return [(e, _best_of(e, [e, e], [f, again[e]]) if e in again else f) for e, f in tried]
 
 
-def _best_of(effect: str, owners: list[str], fits: list[FitResult]) -> FitResult:
+def _least_objective(effect: str, owners: list[str], fits: list[FitResult]) -> FitResult:
     """The fit of ``effect`` with the least fit-step objective (never the held-out gap,
-    which judges the effect and must not choose its parameters); ``n_evals`` summed."""
+    which judges the effect and must not choose its parameters)."""
     mine = [f for o, f in zip(owners, fits, strict=True) if o == effect]
-    best = min(mine, key=lambda f: f.objective)
+    return min(mine, key=lambda f: f.objective)
+
+
+def _best_of(effect: str, owners: list[str], fits: list[FitResult]) -> FitResult:
+    """:func:`_least_objective`, with ``n_evals`` and ``seconds`` summed over the fits of
+    ``effect``."""
+    mine = [f for o, f in zip(owners, fits, strict=True) if o == effect]
+    best = _least_objective(effect, owners, fits)
     cont = [f.extra["continuation"] for f in mine if "continuation" in f.extra]
     best.n_evals = sum(f.n_evals for f in mine)
     best.seconds = sum(f.seconds for f in mine)
@@ -606,6 +621,12 @@ def _runner_up_start(rounds, accepted, problem: Problem, floor: float, tie: floa
     Never the armature as the runner-up: the last round searches it again with other
     seeds (:func:`_armature_seeds`), and a second start of it would cost as much as all
     the other additions of the round together.
+
+    The second start runs after the round's other fits, and not at all where the
+    armature's first search leads them clearly (:func:`_armature_leads`): the round
+    then takes the armature whatever the runner-up's second start gives. On the
+    independent ``seed_like_long_steps`` (session 61) the armature led at 1.02 floors,
+    the harmonic's first start at 2.35; its second ended at 2.69 for 12-16 s.
     """
     if len(accepted) < 2:
         return None
@@ -978,7 +999,7 @@ def forward_select(
             )
             mark_proposed("pair_check", (check or {}).get("refused_pair"))
             work.stage = "pair_check"
-            work.add(fits)
+            work.add(fits, [problem] * len(fits))
             return accepted, check, fits
 
         def shows_more(model) -> bool:
@@ -1024,8 +1045,6 @@ def forward_select(
             last = len(accepted) == settings.max_effects - 1
             starts = [(eff, prev) for eff in todo]
             second = _runner_up_start(rounds, accepted, problem, floor, settings.tie)
-            if second is not None:  # the runner-up's joint fit, also from its own point
-                starts.append((second[0], {**prev, **second[1], **fixed}))
             for eff, start in starts:
                 for extra in _discrete_splits(eff, fixed, round1):
                     name = model_name([*effects, eff])
@@ -1039,6 +1058,14 @@ def forward_select(
                          read_starts(harmonic_read, name, fixed_here))
                     )  # fmt: skip
             fits = fit_many(jobs, pool, progress, work)
+            if second is not None:  # the runner-up's joint fit, also from its own point
+                tried = [(eff, _least_objective(eff, owners, fits)) for eff in todo]
+                if not _armature_leads(tried, problem, floor, settings):
+                    eff, start = second[0], {**prev, **second[1], **fixed}
+                    for i in [i for i, o in enumerate(owners) if o == eff]:
+                        owners.append(eff)
+                        jobs.append((*jobs[i][:2], start, *jobs[i][3:]))
+                    fits = fits + fit_many(jobs[len(fits) :], pool, progress, work)
             tried = [(eff, _best_of(eff, owners, fits)) for eff in todo]
             tried = _k_held_again(
                 tried, prev, (problem, fixed, fit_settings, seed), pool, progress, work,

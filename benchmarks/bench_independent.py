@@ -286,6 +286,25 @@ def stage_seconds(timings: dict) -> dict:
     }
 
 
+def summarize(cases_by_name: dict) -> dict:
+    """The record's ``summary`` of its scored cases (``name -> score``)."""
+    cases = cases_by_name.values()
+    library = [c for c in cases if not c.get("outside")]
+    return {
+        "cases": len(cases_by_name),
+        "library_cases": len(library),
+        "set_right": sum(c["set_right"] for c in library),
+        "verdict_right": sum(c["verdict_right"] for c in cases),
+        "outside_flagged": sum(c["unexplained"] for c in cases if c.get("outside")),
+        "outside_cases": len(cases) - len(library),
+        "params_within_15pct": sum(v <= 0.15 for c in cases for v in c["param_rel_error"].values()),
+        "params": sum(len(c["param_rel_error"]) for c in cases),
+        "param_warnings": parameters_by_warning(cases),
+        "max_diagnose_s": max(c["diagnose_s"] for c in cases),
+        "over_goal_s": sorted(n for n, c in cases_by_name.items() if c["diagnose_s"] > GOAL_S),
+    }
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--only", nargs="*", default=None)
@@ -333,21 +352,7 @@ def main() -> None:
                 f"{s['final_floors']:.2f} floors; {errs}; {t2 - t1:.0f} s",
                 flush=True,
             )
-    cases = record["cases"].values()
-    library = [c for c in cases if not c.get("outside")]
-    record["summary"] = {
-        "cases": len(record["cases"]),
-        "library_cases": len(library),
-        "set_right": sum(c["set_right"] for c in library),
-        "verdict_right": sum(c["verdict_right"] for c in cases),
-        "outside_flagged": sum(c["unexplained"] for c in cases if c.get("outside")),
-        "outside_cases": len(cases) - len(library),
-        "params_within_15pct": sum(v <= 0.15 for c in cases for v in c["param_rel_error"].values()),
-        "params": sum(len(c["param_rel_error"]) for c in cases),
-        "param_warnings": parameters_by_warning(cases),
-        "max_diagnose_s": max(c["diagnose_s"] for c in cases),
-        "over_goal_s": sorted(n for n, c in record["cases"].items() if c["diagnose_s"] > GOAL_S),
-    }
+    record["summary"] = summarize(record["cases"])
     record["machine"] = {"cpus": platform.machine(), "python": platform.python_version()}
     record["diagnosis_seed"] = args.seed
     record["generator"] = args.generator

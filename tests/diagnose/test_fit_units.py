@@ -257,12 +257,16 @@ def scripted_fit(name: str, params: dict, gap: float) -> FitResult:
     )  # fmt: skip
 
 
-def script_selection(monkeypatch, fake_fit_many, refined=None):
+def script_selection(monkeypatch, fake_fit_many, refined=None, alternative=False):
     """Make :func:`bouncelab.gap.select.forward_select` run on scripted fits: ``fit_many``
     is ``fake_fit_many``, the held-out gap is each fit's objective, no simulated cycles
     are counted, and the refinement's settings are ``refined`` (None: no refinement).
-    One optimiser seed per job (the last round's armature seeds have a test of their own)."""
+    One optimiser seed per job (the last round's armature seeds have a test of their own);
+    no :func:`bouncelab.gap.select.armature_alternative` unless ``alternative``."""
     from bouncelab.gap import select
+
+    if not alternative:
+        monkeypatch.setattr(select, "armature_alternative", lambda *a, **k: None)
 
     monkeypatch.setattr(select, "ARMATURE_SEEDS", 1)
     monkeypatch.setattr(select, "fit_many", fake_fit_many)
@@ -1150,6 +1154,65 @@ def test_the_runner_ups_second_start_is_skipped_where_the_armature_leads_clearly
     else:
         assert len(starts) == 1
         assert [e for e, _f in sel["accepted"]] == ["restitution", "friction", "feedback"]
+
+
+@pytest.mark.parametrize(
+    ("alt_fresh", "warned"), [([0.23, 0.24, 0.22, 0.23], True), ([0.35, 0.36, 0.34, 0.35], False)]
+)
+def test_an_armature_alone_is_checked_against_its_other_load_with_a_gamma_scale(
+    monkeypatch, alt_fresh, warned
+):
+    """Reference: a scripted selection (floor 1) shaped on the independent
+    ``feedback_gamma_scale`` (session 61). Round 1 takes the loaded armature alone at
+    0.21 floors (f_ratio 0.845, zeta 0.24; the impacts-only one 1.67 at f_ratio 0.66);
+    the impacts-only armature beside a Gamma miscalibration, searched from round 1's
+    impacts-only fit and from the selected values, reaches s 0.937, f_ratio 0.527, zeta
+    0.038. On fresh
+    ensembles the selected scores 0.21: at 0.23 the two are within DATA_RESOLUTION (0.12)
+    and f_ratio and zeta (moved by more than 15 %; mass_ratio 4 %, not) get the warning
+    :func:`bouncelab.gap.fit.warned_params` reads; at 0.35 the data tell them apart
+    (0.14 > 0.12): no warning. The selection is not changed either way."""
+    from bouncelab.gap import select
+    from bouncelab.gap.diagnose import alternative_warnings
+    from bouncelab.gap.fit import warned_params
+
+    loaded = {"mass_ratio": 0.055, "f_ratio": 0.845, "zeta": 0.24, "ride_load": 1.0}
+    alt = {"mass_ratio": 0.053, "f_ratio": 0.527, "zeta": 0.038, "ride_load": 0.0, "s": 0.937}
+    jobs_seen = []
+
+    def fake_fit_many(jobs, pool=None, progress=None, work=None):
+        out = []
+        for _problem, name, base, fixed, *rest in jobs:
+            jobs_seen.append((name, dict(fixed), dict(base), rest[-1] if len(rest) == 5 else None))
+            if name == "feedback" and fixed.get("ride_load") == 1.0:
+                out.append(scripted_fit(name, loaded, 0.21))
+            elif name == "feedback":
+                out.append(scripted_fit(name, {**loaded, "f_ratio": 0.66, "ride_load": 0.0}, 1.67))
+            elif name == "feedback+gamma_scale":
+                out.append(scripted_fit(name, alt, 0.23))
+            else:
+                out.append(scripted_fit(name, {}, 10.0 if name == "ideal" else 5.0))
+        return out
+
+    script_selection(monkeypatch, fake_fit_many, alternative=True)
+    fresh = {"feedback": [0.21, 0.22, 0.20, 0.21], "feedback+gamma_scale": alt_fresh}
+    monkeypatch.setattr(select, "fresh_objectives", lambda m, p, draws: np.array(fresh[m.name]))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["feedback", "gamma_scale"],
+        settings=select.SelectSettings(explained_ratio=2.0),
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["feedback"]
+    assert sel["final"].model.params["ride_load"] == 1.0
+    name, fixed, base, starts = jobs_seen[-1]
+    assert name == "feedback+gamma_scale" and fixed == {"ride_load": 0.0}
+    # from round 1's impacts-only armature, or from the selected one's values
+    assert base["f_ratio"] == 0.66 and base["s"] == 1.0
+    assert starts == [{**loaded, "ride_load": 0.0, "s": 1.0}]
+    found = sel["armature_alternative"]
+    assert found["told_apart"] is not warned
+    assert set(found["moved"]) == {"f_ratio", "zeta"}
+    lines = alternative_warnings(found, 1.0)
+    assert warned_params(lines) == ({"f_ratio", "zeta"} if warned else set())
 
 
 @pytest.mark.parametrize(

@@ -199,6 +199,24 @@ def step_warning(model_name: str, warning: str) -> str:
     return f"{model_name}: {warning}"
 
 
+def alternative_warnings(alternative: dict | None, floor: float) -> list[str]:
+    """The armature step's warnings from :func:`bouncelab.gap.select.armature_alternative`:
+    where the data do not tell the two readings apart, one line per parameter that moves
+    between them, in the form :func:`bouncelab.gap.fit.warned_params` reads."""
+    if not alternative or alternative["told_apart"]:
+        return []
+    params = alternative["params"]
+    kind = "loaded" if params["ride_load"] == 1.0 else "impacts-only"
+    why = (
+        f"the {kind} armature beside a Gamma miscalibration (s = {params['s']:.4g}) fits the "
+        f"flight times as well ({alternative['gap'] / floor:.3g} noise floors held out)"
+    )
+    return [
+        f"{name}={v:.4g} is poorly identified: {why} with {name} {w:.4g}"
+        for name, (v, w) in alternative["moved"].items()
+    ]
+
+
 def margin_warnings(margin: dict, heldout_gammas) -> list[str]:
     """The run-level warnings of :func:`verdict_margin`'s result: too few held-out steps
     (:data:`FEW_HELDOUT`), and a verdict within one standard error of its limit."""
@@ -507,6 +525,11 @@ def diagnose_flights(
         steps.append(entry)
         prev_g = g
 
+    alternative = sel["armature_alternative"]
+    for line in alternative_warnings(alternative, floor):
+        steps[-1]["warnings"].append(line)
+        warnings.append(step_warning(steps[-1]["model"], line))
+
     pair = sel["pair_check"] or {}
     if "replaced_by" in pair:
         a, b = pair["replaced_by"]
@@ -597,6 +620,8 @@ def diagnose_flights(
         "went_on": sel["went_on"],
         # an armature taken alone against every pair of the other effects, or null
         "pair_check": sel["pair_check"],
+        # an armature taken alone against its other ride_load beside a Gamma miscalibration
+        "armature_alternative": alternative,
         "weak_dropped": sel["weak_dropped"],
         # additions whose gain was a better refit of the effects before them
         "not_earned": sel["not_earned"],

@@ -96,6 +96,11 @@ SEED_STRIDE = 7919
 CHOICE_DRAWS = 4
 CHOICE_SIGMAS = 2.0
 
+#: Relative difference of an armature parameter between the armature taken alone and
+#: :func:`armature_alternative` beyond which the parameter is reported poorly identified
+#: (issue 6's recovery goal).
+ALTERNATIVE_SHARE = 0.15
+
 #: effect -> (strength parameter, its null value, tolerance): within the tolerance the
 #: effect does nothing a flight table could show. Why: a joint refit can gain by moving
 #: the effects already taken, with the new one at its bound (blind cases: friction at
@@ -496,7 +501,9 @@ def _armature_leads(tried, problem: Problem, floor: float, settings: SelectSetti
     """Whether the armature of ``tried`` is the round's proposal, more than ``tie`` floors
     of held-out gap ahead of every other addition, and within ``explained_ratio``
     floors: the round takes it and the run is explained with it, so its extra optimiser
-    seeds (:func:`_armature_seeds`) could move only its parameters.
+    seeds (:func:`_armature_seeds`) could move only its parameters, and the runner-up's
+    second start (:func:`_runner_up_start`) would have to gain more than the lead to
+    change the round (on the seed-like runs it gained nothing, session 61): neither runs.
 
     Why: the seeds are for an armature tied with a simpler stand-in (:data:`ARMATURE_SEEDS`).
     On the compliant ``seed_like`` (session 60) the armature led a Gamma miscalibration by
@@ -719,6 +726,78 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings, r
         return accepted, info, fits
     info["replaced_by"] = [a, b]
     return [(a, singles[a]), (b, fit)], info, fits
+
+
+def armature_alternative(accepted, job, pool, progress, work: WorkTally, alone=None):
+    """The other reading of an armature taken alone: its other ``ride_load`` choice beside
+    a Gamma miscalibration, and whether the data tell the two apart. None unless the
+    selection is the armature alone with ``ride_load`` and ``s`` free. ``job``:
+    ``(problem, fixed, fit settings, seed)``; ``alone``: round 1's armature fits,
+    ``ride_load -> FitResult``. The search starts from the better of round 1's fit with
+    the other choice and the selected armature's values (``s`` 1).
+
+    Returns ``{"model", "params", "gap"}`` (the alternative's fit, held-out gap in rad),
+    ``told_apart`` (the selected armature's mean fit-step objective on fresh ensembles,
+    :func:`bouncelab.gap.fit.fresh_objectives`, lower than the alternative's by more than
+    :data:`CHOICE_SIGMAS` standard errors of the difference and more than
+    :data:`bouncelab.gap.fit.DATA_RESOLUTION` of the fit steps' mean noise floor, as
+    :func:`armature_choice` decides a choice) and ``moved`` (``param -> [selected,
+    alternative]`` for the armature's parameters that differ by more than
+    :data:`ALTERNATIVE_SHARE`).
+
+    Why: a riding body's load changes the plate's amplitude while it rides, as a Gamma
+    factor does, so a loaded armature alone and an impacts-only one with a miscalibrated
+    Gamma can give the same flight times. On the independent ``feedback_gamma_scale``
+    (impacts-only m/M 0.05, f_ratio 0.6, zeta 0.05, s 0.94) the selection took the loaded
+    armature alone at 0.21 floors held out, f_ratio 0.845 and zeta 0.24 (41 % and 385 %
+    off, without a warning); the impacts-only one with s free reaches 0.23 floors at s
+    0.937, f_ratio 0.527, zeta 0.038. Where the armature alone is the truth
+    (``feedback_impacts_only``), the alternative stays behind: 0.25 floors against 0.08
+    (docs/diagnosis-log.md, session 61). Only for an armature alone: beside other effects
+    the alternative would be a search of six or more parameters.
+    """
+    if [e for e, _f in accepted] != ["feedback"]:
+        return None
+    problem, fixed, fit_settings, seed = job
+    if "ride_load" in fixed or "s" in fixed:
+        return None
+    arm = accepted[0][1]
+    load = float(arm.model.params["ride_load"])
+    others = [v for v in RIDE_LOAD_CHOICES if v != load]
+    if not others:
+        return None
+    other = {**fixed, "ride_load": others[0]}
+    start = {**arm.model.params, **other, "s": 1.0}
+    first = (alone or {}).get(others[0])
+    base = {**first.model.params, **other, "s": 1.0} if first is not None else start
+    work.stage = "armature_alternative"
+    (alt,) = fit_many(
+        [(problem, "feedback+gamma_scale", base, other, None, fit_settings, seed, False, [start])],
+        pool,
+        progress,
+        work,
+    )
+    moved = {}
+    for name in EFFECTS["feedback"]:
+        if name == "ride_load":
+            continue
+        v, w = float(arm.model.params[name]), float(alt.model.params[name])
+        if abs(w - v) > ALTERNATIVE_SHARE * abs(v):
+            moved[name] = [v, w]
+    told_apart = False
+    if problem.fit.any():
+        ref = fresh_objectives(arm.model, problem, CHOICE_DRAWS)
+        vals = fresh_objectives(alt.model, problem, CHOICE_DRAWS)
+        se = math.sqrt((ref.var(ddof=1) + vals.var(ddof=1)) / CHOICE_DRAWS)
+        resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
+        told_apart = float(vals.mean() - ref.mean()) > max(CHOICE_SIGMAS * se, resolution)
+    return {
+        "model": alt.model.name,
+        "params": {k: float(v) for k, v in alt.model.params.items()},
+        "gap": float(heldout_gap(alt, problem)),
+        "told_apart": bool(told_apart),
+        "moved": moved,
+    }
 
 
 def _rechecked(fit: FitResult, problem: Problem, pool, work: WorkTally | None) -> FitResult:
@@ -948,7 +1027,8 @@ def forward_select(
     selection go on past the floor, one per round), ``not_earned`` and ``phase_taken``
     (additions refused by :func:`earns_place`'s refit, taken for the phases),
     ``takeoff_refused`` (see ``refuted``),
-    ``weak_dropped`` (list of ``{"effect", "param", "interval"}``, see ``interval``) and
+    ``weak_dropped`` (list of ``{"effect", "param", "interval"}``, see ``interval``),
+    ``armature_alternative`` (:func:`armature_alternative`, or None) and
     ``work`` (``flights``: what
     every fit simulated, :class:`WorkTally`) and ``fit_log`` (:attr:`WorkTally.fits`:
     each fit's stage, model, evaluations, flights and wall-clock seconds).
@@ -989,6 +1069,7 @@ def forward_select(
                     entry["proposed"] = entry["model"] == proposed_model
 
         pair_check, pair_fits = None, []
+        round1_armatures: dict = {}
         pair_job = (problem, base_fit, fixed, fit_settings, seed)
 
         def check_pairs(accepted):
@@ -1058,6 +1139,12 @@ def forward_select(
                          read_starts(harmonic_read, name, fixed_here))
                     )  # fmt: skip
             fits = fit_many(jobs, pool, progress, work)
+            if not rounds:  # each ride_load's armature alone (armature_alternative)
+                round1_armatures = {
+                    float(f.model.params["ride_load"]): f
+                    for o, f in zip(owners, fits, strict=True)
+                    if o == "feedback"
+                }
             if second is not None:  # the runner-up's joint fit, also from its own point
                 tried = [(eff, _least_objective(eff, owners, fits)) for eff in todo]
                 if not _armature_leads(tried, problem, floor, settings):
@@ -1214,6 +1301,9 @@ def forward_select(
                 dropped = {w["effect"] for w in weak}
                 accepted = [(e, f) for e, f in accepted if e not in dropped]
                 accepted[-1] = (accepted[-1][0], current)
+        alternative = armature_alternative(
+            accepted, (problem, fixed, fit_settings, seed), pool, progress, work, round1_armatures
+        )
     return {
         "baseline": base_fit,
         "rounds": rounds,
@@ -1224,6 +1314,7 @@ def forward_select(
         "refined": refined,
         "went_on": went_on,
         "pair_check": pair_check,
+        "armature_alternative": alternative,
         "box": box,
         "weak_dropped": weak,
         "not_earned": not_earned,

@@ -1167,11 +1167,10 @@ def test_an_armature_alone_is_checked_against_its_other_load_with_a_gamma_scale(
     0.21 floors (f_ratio 0.845, zeta 0.24; the impacts-only one 1.67 at f_ratio 0.66);
     the impacts-only armature beside a Gamma miscalibration, searched from round 1's
     impacts-only fit and from the selected values, reaches s 0.937, f_ratio 0.527, zeta
-    0.038. On fresh
-    ensembles the selected scores 0.21: at 0.23 the two are within DATA_RESOLUTION (0.12)
-    and f_ratio and zeta (moved by more than 15 %; mass_ratio 4 %, not) get the warning
-    :func:`bouncelab.gap.fit.warned_params` reads; at 0.35 the data tell them apart
-    (0.14 > 0.12): no warning. The selection is not changed either way."""
+    0.038. On fresh ensembles the selected scores 0.21: at 0.23 the two are within
+    DATA_RESOLUTION (0.12) and f_ratio and zeta (moved by more than 15 %; mass_ratio 4 %,
+    not) get the warning :func:`bouncelab.gap.fit.warned_params` reads; at 0.35 the data
+    tell them apart (0.14 > 0.12): no warning. The selection is not changed either way."""
     from bouncelab.gap import select
     from bouncelab.gap.diagnose import alternative_warnings
     from bouncelab.gap.fit import warned_params

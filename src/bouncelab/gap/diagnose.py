@@ -526,9 +526,10 @@ def diagnose_flights(
         prev_g = g
 
     alternative = sel["armature_alternative"]
-    for line in alternative_warnings(alternative, floor):
-        steps[-1]["warnings"].append(line)
-        warnings.append(step_warning(steps[-1]["model"], line))
+    lines = alternative_warnings(alternative, floor)
+    if lines:  # (a new list: the step's own is its cached summary's)
+        steps[-1]["warnings"] = [*steps[-1]["warnings"], *lines]
+        warnings += [step_warning(steps[-1]["model"], line) for line in lines]
 
     pair = sel["pair_check"] or {}
     if "replaced_by" in pair:

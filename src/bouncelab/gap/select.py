@@ -422,18 +422,28 @@ def armature_choice(fits: dict[float, FitResult], kept: float, problem: Problem)
     spent = sum(f.n_evals for f in fits.values())
     if others and problem.fit.any():
         ref = fresh_objectives(best.model, problem, CHOICE_DRAWS)
-        resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
         margin_of = {}
         for v in sorted(others):
-            vals = fresh_objectives(others[v].model, problem, CHOICE_DRAWS)
-            se = math.sqrt((ref.var(ddof=1) + vals.var(ddof=1)) / CHOICE_DRAWS)
-            gain = float(ref.mean() - vals.mean())
-            if gain > max(CHOICE_SIGMAS * se, resolution):
+            gain = _fresh_gain(ref, others[v].model, problem)
+            if gain is not None:
                 margin_of[v] = gain
         if margin_of:
             best = others[max(margin_of, key=margin_of.get)]
     best.n_evals = spent
     return best
+
+
+def _fresh_gain(ref: np.ndarray, model: Model, problem: Problem) -> float | None:
+    """How much lower ``model``'s mean fit-step objective (rad) is on :data:`CHOICE_DRAWS`
+    fresh ensembles than ``ref`` (another model's, same draws), where it is lower by more
+    than :data:`CHOICE_SIGMAS` standard errors of the difference and more than
+    :data:`bouncelab.gap.fit.DATA_RESOLUTION` of the fit steps' mean noise floor; else
+    None (the data do not tell the two apart, or ``ref`` is ahead)."""
+    vals = fresh_objectives(model, problem, CHOICE_DRAWS)
+    se = math.sqrt((ref.var(ddof=1) + vals.var(ddof=1)) / CHOICE_DRAWS)
+    resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
+    gain = float(ref.mean() - vals.mean())
+    return gain if gain > max(CHOICE_SIGMAS * se, resolution) else None
 
 
 def _proposal(tried: list[tuple[str, FitResult]], problem: Problem, floor: float, tie: float):
@@ -785,12 +795,9 @@ def armature_alternative(accepted, job, pool, progress, work: WorkTally, alone=N
         if abs(w - v) > ALTERNATIVE_SHARE * abs(v):
             moved[name] = [v, w]
     told_apart = False
-    if problem.fit.any():
-        ref = fresh_objectives(arm.model, problem, CHOICE_DRAWS)
-        vals = fresh_objectives(alt.model, problem, CHOICE_DRAWS)
-        se = math.sqrt((ref.var(ddof=1) + vals.var(ddof=1)) / CHOICE_DRAWS)
-        resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
-        told_apart = float(vals.mean() - ref.mean()) > max(CHOICE_SIGMAS * se, resolution)
+    if problem.fit.any():  # the selected armature clearly ahead of the alternative
+        ref = fresh_objectives(alt.model, problem, CHOICE_DRAWS)
+        told_apart = _fresh_gain(ref, arm.model, problem) is not None
     return {
         "model": alt.model.name,
         "params": {k: float(v) for k, v in alt.model.params.items()},

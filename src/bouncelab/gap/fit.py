@@ -25,6 +25,7 @@ import re
 import time
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -873,11 +874,17 @@ class FitResult:
 _WORKER: dict = {}
 
 
-def _worker_start(problem: Problem) -> None:
+def _worker_start(problem_path: str) -> None:
+    """Set up a pool's worker: one numba thread, and the problem read from the pickle at
+    ``problem_path`` (written by :class:`EvaluationPool`)."""
+    import pickle
+
     import numba
 
     # the processes are the parallelism: kernels on two threads each would oversubscribe
     numba.set_num_threads(1)
+    with open(problem_path, "rb") as f:
+        problem = pickle.load(f)
     _WORKER.update(problem=problem, buffer=OutputBuffer())
 
 
@@ -934,15 +941,24 @@ class EvaluationPool:
 
     def __init__(self, problem: Problem, workers: int):
         import multiprocessing
+        import pickle
+        import tempfile
         from concurrent.futures import ProcessPoolExecutor
 
         self.problem = problem
         self.workers = int(workers)
+        # the problem (megabytes) goes by a file, not in the arguments of the spawn: those
+        # are written to a pipe the new process reads only once it has imported the
+        # package, so the workers would start one after the other (1.4 s each, session 62)
+        temp = tempfile.NamedTemporaryFile(prefix="bouncelab-pool-", suffix=".pkl", delete=False)
+        with temp as f:
+            pickle.dump(problem, f, protocol=pickle.HIGHEST_PROTOCOL)
+        self._problem_path = f.name
         self._executor = ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_worker_start,
-            initargs=(problem,),
+            initargs=(self._problem_path,),
         )
         # numba compiles the kernels at their first use (then caches them): here one in
         # each worker at once while the caller waits, not one after the other in the
@@ -985,6 +1001,7 @@ class EvaluationPool:
 
     def close(self) -> None:
         self._executor.shutdown()
+        Path(self._problem_path).unlink(missing_ok=True)
 
     def __enter__(self) -> EvaluationPool:
         return self

@@ -823,6 +823,36 @@ def test_the_last_round_skips_the_extra_seeds_of_an_armature_that_leads_clearly(
         assert sel["final"].objective == 1.5
 
 
+def impacts_only_fresher_selection(monkeypatch, fake_fit_many, armature_seeds: int = 1) -> dict:
+    """:func:`bouncelab.gap.select.forward_select` on ``fake_fit_many``'s fits over
+    restitution, the armature and a Gamma miscalibration (``max_effects`` 2,
+    ``explained_ratio`` 0.5), the impacts-only armature better on fresh ensembles (0.5
+    against 1.0), with ``armature_seeds`` optimiser seeds."""
+    from bouncelab.gap import select
+
+    script_selection(monkeypatch, fake_fit_many)
+    monkeypatch.setattr(select, "ARMATURE_SEEDS", armature_seeds)
+    fresh = {0.0: [0.5, 0.6], 1.0: [1.0, 1.1]}
+    monkeypatch.setattr(
+        select, "fresh_objectives", lambda m, p, draws: np.array(fresh[m.params["ride_load"]])
+    )
+    return select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
+        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
+    )  # fmt: skip
+
+
+def other_load_fit(name: str, params: dict, load: float) -> FitResult:
+    """The scripted fits of the two ``ride_load`` tests below other than restitution plus
+    the armature: the armature alone 9 floors loaded and 9.5 impacts-only (round 1 keeps
+    the loaded one), restitution 5, anything else 9."""
+    if name == "feedback":
+        return scripted_fit(name, params, 9.0 if load == 1.0 else 9.5)
+    if name == "restitution":
+        return scripted_fit(name, {}, 5.0)
+    return scripted_fit(name, {"s": 1.05} if "gamma" in name else {}, 9.0)
+
+
 @pytest.mark.parametrize("other_gap, seeded", [(0.9, False), (1.4, True)])
 def test_the_last_rounds_other_ride_load_runs_before_the_extra_seeds(
     monkeypatch, other_gap, seeded
@@ -848,24 +878,11 @@ def test_the_last_rounds_other_ride_load_runs_before_the_extra_seeds(
             if name == "restitution+feedback":
                 gap = 1.7 if load == 1.0 else (other_gap if seed == 0 else 1.2)
                 out.append(scripted_fit(name, params, gap))
-            elif name == "feedback":
-                out.append(scripted_fit(name, params, 9.0 if load == 1.0 else 9.5))
-            elif name == "restitution":
-                out.append(scripted_fit(name, {}, 5.0))
             else:
-                out.append(scripted_fit(name, {"s": 1.05} if "gamma" in name else {}, 9.0))
+                out.append(other_load_fit(name, params, load))
         return out
 
-    script_selection(monkeypatch, fake_fit_many)
-    monkeypatch.setattr(select, "ARMATURE_SEEDS", 3)
-    fresh = {0.0: [0.5, 0.6], 1.0: [1.0, 1.1]}
-    monkeypatch.setattr(
-        select, "fresh_objectives", lambda m, p, draws: np.array(fresh[m.params["ride_load"]])
-    )
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
-        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
-    )  # fmt: skip
+    sel = impacts_only_fresher_selection(monkeypatch, fake_fit_many, armature_seeds=3)
     joint = [(load, seed) for n, load, seed in calls if n == "restitution+feedback"]
     final = sel["final"].model.params
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
@@ -893,7 +910,6 @@ def test_the_other_ride_loads_joint_search_runs_only_where_its_own_search_leaves
     search could only move the parameters along the flat valley, so it is not run. The
     better of the two on the fit steps is kept where both ran
     (:func:`bouncelab.gap.select._armature_again`)."""
-    from bouncelab.gap import select
 
     searches = []
 
@@ -912,23 +928,11 @@ def test_the_other_ride_loads_joint_search_runs_only_where_its_own_search_leaves
                     searches.append("own")
                     gap = own_gap
                 out.append(scripted_fit(name, params, gap))
-            elif name == "feedback":
-                out.append(scripted_fit(name, params, 9.0 if load == 1.0 else 9.5))
-            elif name == "restitution":
-                out.append(scripted_fit(name, {}, 5.0))
             else:
-                out.append(scripted_fit(name, {"s": 1.05} if "gamma" in name else {}, 9.0))
+                out.append(other_load_fit(name, params, load))
         return out
 
-    script_selection(monkeypatch, fake_fit_many)
-    fresh = {0.0: [0.5, 0.6], 1.0: [1.0, 1.1]}
-    monkeypatch.setattr(
-        select, "fresh_objectives", lambda m, p, draws: np.array(fresh[m.params["ride_load"]])
-    )
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["restitution", "feedback", "gamma_scale"],
-        settings=select.SelectSettings(max_effects=2, explained_ratio=0.5),
-    )  # fmt: skip
+    sel = impacts_only_fresher_selection(monkeypatch, fake_fit_many)
     assert searches == (["own", "joint"] if joint_run else ["own"])
     assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
     assert sel["final"].model.params["ride_load"] == 0.0

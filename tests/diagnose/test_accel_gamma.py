@@ -188,8 +188,11 @@ def miscalibrated_run(tmp_path_factory):
 
 def test_fix_accel_holds_s_at_the_reading(miscalibrated_run):
     from bouncelab.gap.diagnose import diagnose_run
+    from bouncelab.gap.fit import FitSettings
 
-    d = diagnose_run(miscalibrated_run, fix_accel=True, retries=0)
+    # what is held does not depend on the search's budget: a small one (a tenth of the time)
+    small = FitSettings(popsize=4, maxiter=4, local_evals=4, n_boot=50)
+    d = diagnose_run(miscalibrated_run, fix_accel=True, retries=0, fit_settings=small)
     accel = d["accel_calibration"]
     assert accel["fixed"] is True
     assert abs(accel["s"] - 1.07) < 0.01 * 1.07  # the reading, against the rig's truth

@@ -258,3 +258,24 @@ def test_blind_table_says_whether_the_misses_were_warned_about(tmp_path):
     rows = {r[0]: r[1:] for r in table["rows"]}
     assert rows["parameters outside 15 % that the diagnosis warned about"] == ["2 of 2", "-", "all"]
     assert rows["parameters without a warning that are within 15 %"] == ["3 of 3", "-", "-"]
+
+
+def test_a_run_the_config_leaves_undiagnosed_is_said_so_not_shown_stale(tmp_path):
+    from bouncelab.report.content import diagnosis_blocks, not_diagnosed_by_config
+
+    on = {"diagnosis": {"enabled": True, "skip": ["b"]}}
+    assert not_diagnosed_by_config(on, "a") == ""
+    assert "diagnosis.skip" in not_diagnosed_by_config(on, "b")
+    off = {"diagnosis": {"enabled": False, "skip": []}}
+    assert "diagnosis.enabled is false" in not_diagnosed_by_config(off, "a")
+    # a diagnosis left from an earlier config is not read when the reason is given
+    (tmp_path / "runs" / "b").mkdir(parents=True)
+    (tmp_path / "runs" / "b" / "diagnosis.json").write_text("{not json a reader would take")
+    (note,) = diagnosis_blocks(tmp_path, "b", tmp_path, not_diagnosed_by_config(on, "b"))
+    assert note == {
+        "type": "note",
+        "text": "Gap diagnosis: not computed: the run is in diagnosis.skip of config/config.yaml.",
+    }
+    # no reason and no readable file: the note names the file and its log
+    (note,) = diagnosis_blocks(tmp_path, "a", tmp_path)
+    assert "runs/a/diagnosis.json" in note["text"] and "logs/diagnose/a.log" in note["text"]

@@ -8,7 +8,7 @@ import subprocess
 import sys
 import zipfile
 
-from .conftest import REPO, copy_project, snakemake, tree_hashes
+from .conftest import REPO, SKIPPED_DIAGNOSES, snakemake, tree_hashes
 
 JOB_RE = re.compile(
     r"^(?:local)?(?:rule|checkpoint) (\w+):\n(?:    .*\n)*?    wildcards: (.*)$", re.M
@@ -69,10 +69,11 @@ def test_two_runs_give_identical_simulations_and_figures(workflow_dir):
     assert hashes() == before
 
 
-def test_dropped_in_run_and_broken_run(tmp_path):
-    # a small project: the drop test and the accelerometer sweep
-    work = copy_project(tmp_path / "project", raw_runs=["drop_test", "accel_g2-4"])
-    snakemake(work)
+def test_dropped_in_run_and_broken_run(project_copy):
+    # the built project, copied: up to date before anything is dropped in
+    work = project_copy
+    dry = snakemake(work, "-n")
+    assert "Nothing to be done" in dry.stdout + dry.stderr
     # drop in a new sweep: only its own jobs and the report run
     shutil.copytree(REPO / "raw" / "accel_g2-4", work / "raw" / "new_sweep")
     out = snakemake(work)
@@ -83,6 +84,7 @@ def test_dropped_in_run_and_broken_run(tmp_path):
     unnamed = {r for r, w in jobs if not w}
     assert unnamed <= {"report", "all"}, unnamed
     assert ("simulate", "run=new_sweep, variant=ideal") in jobs
+    assert ("diagnose", "run=new_sweep") in jobs  # diagnosed: not in diagnosis.skip
     html = (work / "results" / "report" / "report.html").read_text()
     assert 'id="run-new_sweep"' in html
 
@@ -126,6 +128,22 @@ def test_dropped_in_run_and_broken_run(tmp_path):
     html = (work / "results" / "report" / "report.html").read_text()
     assert 'id="run-short_sweep"' in html
     assert "diagnosis needs at least 3 Gamma steps, the run has 2" in html
+
+
+def test_a_run_in_diagnosis_skip_gets_every_product_but_the_diagnosis(workflow_dir):
+    # the test projects skip raw/sweep_g0-8's diagnosis (conftest); the other sweeps have one
+    res = workflow_dir / "results"
+    html = (res / "report" / "report.html").read_text()
+    for run in SKIPPED_DIAGNOSES:
+        assert (res / "runs" / run / "compare.parquet").is_file()
+        assert (res / "figures" / run / "gap_over_gamma.png").is_file()
+        assert not (res / "runs" / run / "diagnosis.json").exists()
+        assert not (res / "figures" / run / "fig_gap_diagnosis.png").exists()
+    assert html.count("the run is in diagnosis.skip of config/config.yaml") == len(
+        SKIPPED_DIAGNOSES
+    )
+    for run in ("sweep_g0-4", "accel_g2-4"):
+        assert (res / "runs" / run / "diagnosis.json").is_file()
 
 
 def test_snakemake_lint_and_snakefmt_are_clean():

@@ -63,6 +63,13 @@ def run_diagnosable(run):
     return not check_verdict(run).get("no_diagnosis")
 
 
+def run_diagnosed(run):
+    """Whether the pipeline diagnoses this sweep run: diagnosis enabled, the run not in
+    diagnosis.skip, and long enough (run_diagnosable)."""
+    skipped = run in config["diagnosis"].get("skip", [])
+    return config["diagnosis"]["enabled"] and not skipped and run_diagnosable(run)
+
+
 def _mass_kg(meta):
     """A run's stated mass_kg as a float, or None (absent or not a number)."""
     try:
@@ -117,13 +124,13 @@ def sweep_products(run):
         f"{RES}/runs/{run}/energy.parquet",
     ]
     out += [f"{RES}/runs/{run}/sim/{v}.parquet" for v in VARIANTS]
-    diagnosable = run_diagnosable(run)  # a too-short run gets the rest
-    if config["diagnosis"]["enabled"] and diagnosable:
+    diagnosed = run_diagnosed(run)  # a too-short or unchosen run gets the rest
+    if diagnosed:
         out.append(f"{RES}/runs/{run}/diagnosis.json")
     out += [
         f"{RES}/figures/{run}/{fig}.png"
         for fig in SWEEP_FIGURES
-        if diagnosable or fig != "fig_gap_diagnosis"
+        if diagnosed or fig != "fig_gap_diagnosis"
     ]
     if run in ACCEL_RUNS:
         out.append(f"{RES}/figures/{run}/fig04_accelerometer.png")

@@ -285,6 +285,19 @@ def _accel_text(accel: dict | None) -> str:
     return text
 
 
+def not_diagnosed_by_config(config: dict, run: str) -> str:
+    """Why the workflow's config leaves a sweep run undiagnosed ('' when it does not):
+    ``diagnosis.enabled`` false, or the run in ``diagnosis.skip``. Read from the config
+    rather than from a missing file, so a diagnosis left over from an earlier config is
+    not shown."""
+    diag = config.get("diagnosis") or {}
+    if not diag.get("enabled", True):
+        return "diagnosis.enabled is false in config/config.yaml"
+    if run in (diag.get("skip") or []):
+        return "the run is in diagnosis.skip of config/config.yaml"
+    return ""
+
+
 def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str = "") -> list[dict]:
     """The gap diagnosis of a sweep run: figure, verdict, candidates, accepted effects,
     regions; or a note saying why it has not been computed (``no_diagnosis``: the
@@ -296,8 +309,8 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
         return [
             {
                 "type": "note",
-                "text": "Gap diagnosis: not computed for this run (diagnosis.enabled is false "
-                "in config/config.yaml).",
+                "text": f"Gap diagnosis: not computed for this run (no readable "
+                f"runs/{run}/diagnosis.json; its log is logs/diagnose/{run}.log).",
             }
         ]
     blocks = []
@@ -623,7 +636,8 @@ def build_context(
             if b:
                 blocks.append(b)
         blocks.append({"type": "heading", "id": f"diag-{run}", "text": "Gap diagnosis"})
-        blocks.extend(diagnosis_blocks(results, run, captions, checks[run].get("no_diagnosis", "")))
+        why_not = checks[run].get("no_diagnosis", "") or not_diagnosed_by_config(config, run)
+        blocks.extend(diagnosis_blocks(results, run, captions, why_not))
         sections.append({"id": f"run-{run}", "title": f"Sweep run {run}", "blocks": blocks})
 
     sections.append(

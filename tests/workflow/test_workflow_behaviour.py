@@ -8,7 +8,7 @@ import subprocess
 import sys
 import zipfile
 
-from .conftest import REPO, SKIPPED_DIAGNOSES, snakemake, tree_hashes
+from .conftest import REPO, SKIPPED_DIAGNOSES, copy_project, snakemake, tree_hashes
 
 JOB_RE = re.compile(
     r"^(?:local)?(?:rule|checkpoint) (\w+):\n(?:    .*\n)*?    wildcards: (.*)$", re.M
@@ -144,6 +144,16 @@ def test_a_run_in_diagnosis_skip_gets_every_product_but_the_diagnosis(workflow_d
     )
     for run in ("sweep_g0-4", "accel_g2-4"):
         assert (res / "runs" / run / "diagnosis.json").is_file()
+
+
+def test_a_misspelt_id_in_diagnosis_skip_is_one_warning(tmp_path):
+    work = copy_project(tmp_path / "project", raw_runs=["accel_g2-4"])
+    cfg = work / "config" / "config.yaml"
+    text = cfg.read_text()
+    cfg.write_text(text.replace("  skip: [sweep_g0-8]", "  skip: [accel_g2_4, accel_g2-4]"))
+    out = snakemake(work, "-n")
+    said = [line for line in out.stderr.splitlines() if "diagnosis.skip" in line]
+    assert said == ["warning: diagnosis.skip in the config names no sweep run of raw/: accel_g2_4"]
 
 
 def test_snakemake_lint_and_snakefmt_are_clean():

@@ -7,6 +7,7 @@
 
 import json
 import re
+import sys
 from pathlib import Path
 
 import yaml
@@ -36,6 +37,14 @@ BAD_NAMES = sorted(
 )
 SWEEPS = [r for r, m in RUNS.items() if m.get("kind") == "sweep"]
 DROPS = [r for r, m in RUNS.items() if m.get("kind") == "drop"]
+# a misspelt id in diagnosis.skip would skip nothing, silently: say so once, at the start
+UNKNOWN_SKIPS = sorted(set(config["diagnosis"].get("skip", [])) - set(SWEEPS))
+if UNKNOWN_SKIPS:
+    print(
+        f"warning: diagnosis.skip in the config names no sweep run of {RAW}/: "
+        + ", ".join(UNKNOWN_SKIPS),
+        file=sys.stderr,
+    )
 ACCEL_RUNS = [r for r, m in RUNS.items() if "accel" in (m.get("channels") or {})]
 # an accelerometer in g: what `diagnosis: fix_accel` needs (bouncelab diagnose --fix-accel)
 ACCEL_G_RUNS = [r for r in ACCEL_RUNS if RUNS[r].get("accel_v_per_g")]

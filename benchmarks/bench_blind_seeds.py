@@ -62,12 +62,11 @@ def max_param_error(score: dict) -> float | None:
 def retried(diagnosis: dict) -> list[dict]:
     """What each seed of a diagnosis's retry concluded (docs/diagnosis.md section 1,
     "Retries of an unexplained run"): ``[{seed, selected, unexplained, final_rel_gap}]``
-    (with ``gap_se`` and ``borderline`` where the diagnosis has them, since session 59;
-    ``before_refinement`` for a seed's search not refined, since session 65),
+    (with ``gap_se`` and ``borderline`` where the diagnosis has them, since session 59),
     empty when the first diagnosis was not retried."""
     return [
         {k: d[k] for k in ("seed", "selected", "unexplained", "final_rel_gap", "gap_se",
-                           "borderline", "before_refinement") if k in d}
+                           "borderline") if k in d}
         for d in (diagnosis.get("retry") or {}).get("diagnoses", [])
     ]  # fmt: skip
 

@@ -73,24 +73,18 @@ def test_the_warning_names_both_conclusions_only_when_a_retry_is_reported():
 
 @pytest.fixture
 def stand_in(monkeypatch):
-    """``diagnosis_stages`` replaced: ``unexplained[seed]`` True is unexplained once
-    refined, ``before[seed]`` before the refinement (as refined unless given); the seeds
-    searched are recorded in ``calls``, those refined in ``refined``."""
+    """``diagnose_flights`` replaced: ``verdicts[seed]`` True is unexplained; the seeds
+    asked for are recorded in ``calls``."""
     import bouncelab.gap.diagnose as diag
 
-    state = {"calls": [], "refined": [], "unexplained": {}, "before": {}, "gap": {}}
-    state["n_heldout"] = 10
+    state = {"calls": [], "unexplained": {}, "n_heldout": 10}
 
     def fake(run, table, duration, *, seed, **kw):
         state["calls"].append(seed)
         unexplained = state["unexplained"].get(seed, False)
-        before = state["before"].get(seed, unexplained)
-        gap, n = state["gap"].get(seed, 1.0 + seed), state["n_heldout"]
-        yield {**_result(seed, ["friction"], before, gap, n), "preview": True}
-        state["refined"].append(seed)
-        yield _result(seed, ["friction"], unexplained, gap, n)
+        return _result(seed, ["friction"], unexplained, 1.0 + seed, state["n_heldout"])
 
-    monkeypatch.setattr(diag, "diagnosis_stages", fake)
+    monkeypatch.setattr(diag, "diagnose_flights", fake)
     return state
 
 
@@ -119,14 +113,14 @@ def test_a_borderline_retry_is_followed_by_the_next(null_run, stand_in, monkeypa
     not the end: the next seed is tried, and reported when it explains the run."""
     import bouncelab.gap.diagnose as diag
 
-    fake = diag.diagnosis_stages
+    fake = diag.diagnose_flights
 
     def with_borderline(*a, seed, **kw):
-        for r in fake(*a, seed=seed, **kw):
-            r["verdict_margin"]["borderline"] = seed == 1
-            yield r
+        r = fake(*a, seed=seed, **kw)
+        r["verdict_margin"]["borderline"] = seed == 1
+        return r
 
-    monkeypatch.setattr(diag, "diagnosis_stages", with_borderline)
+    monkeypatch.setattr(diag, "diagnose_flights", with_borderline)
     run_dir, flights = null_run
     stand_in["unexplained"] = {0: True}
     r = diag.diagnose_run(run_dir, flights=flights, retries=2, progress=False)
@@ -141,73 +135,6 @@ def test_a_borderline_retry_is_followed_by_the_next(null_run, stand_in, monkeypa
     assert summary_line("d.json", r).endswith(
         "retried with 1 more seed(s), explained only on a borderline verdict (seed 1), not reported"
     )
-
-
-def test_only_the_reported_search_is_refined(null_run, stand_in):
-    """A first search that leaves the gap unexplained before its refinement is searched
-    again before it is refined; the retry that explains the run is the one refined, and
-    the first seed's row says it was not (docs/diagnosis-log.md, session 65)."""
-    from bouncelab.gap.diagnose import diagnose_run
-
-    run_dir, flights = null_run
-    stand_in["unexplained"] = {0: True}
-    r = diagnose_run(run_dir, flights=flights, progress=False)
-    assert stand_in["calls"] == [0, 1] and stand_in["refined"] == [1]
-    assert r["design"]["seed"] == 1 and "preview" not in r
-    first, second = r["retry"]["diagnoses"]
-    assert first["before_refinement"] and not second["before_refinement"]
-    assert "its search's model before the refinement" in r["warnings"][0]
-
-
-def test_a_retry_that_fails_once_refined_leaves_the_first_refined(null_run, stand_in):
-    """The retry explains the run before its refinement, not after: the first seed's
-    search is refined then and reported, as the retry rule would have it."""
-    from bouncelab.gap.diagnose import diagnose_run
-
-    run_dir, flights = null_run
-    stand_in["unexplained"] = {0: True, 1: True}
-    stand_in["before"] = {1: False}
-    r = diagnose_run(run_dir, flights=flights, progress=False)
-    assert stand_in["calls"] == [0, 1] and stand_in["refined"] == [1, 0]
-    assert r["design"]["seed"] == 0 and r["unexplained"] and "preview" not in r
-    assert [d["before_refinement"] for d in r["retry"]["diagnoses"]] == [False, False]
-
-
-def test_unexplained_searches_are_refined_by_their_gap_until_one_explains_the_run(
-    null_run, stand_in
-):
-    """Neither search explains the run before its refinement: the one of the lesser
-    held-out gap is refined first, and the other only when that one fails. The
-    refinement can set a retry's takeoff phases right (blind ``seed_like_b`` at
-    diagnosis seed 19, session 65)."""
-    from bouncelab.gap.diagnose import diagnose_run
-
-    run_dir, flights = null_run
-    stand_in.update(unexplained={0: True}, before={1: True}, gap={0: 2.3, 1: 1.4})
-    r = diagnose_run(run_dir, flights=flights, progress=False)
-    assert stand_in["calls"] == [0, 1] and stand_in["refined"] == [1]
-    assert r["design"]["seed"] == 1 and not r["unexplained"]
-    # the lesser gap first, and none refined twice, none reported unrefined
-    stand_in.update(calls=[], refined=[], unexplained={0: True, 1: True}, before={})
-    stand_in["gap"] = {0: 1.4, 1: 2.3}
-    r = diagnose_run(run_dir, flights=flights, progress=False)
-    assert stand_in["calls"] == [0, 1] and stand_in["refined"] == [0, 1]
-    assert r["design"]["seed"] == 0 and r["unexplained"] and "preview" not in r
-
-
-def test_a_search_explained_before_its_refinement_is_retried_on_its_refined_verdict(
-    null_run, stand_in
-):
-    """Where the refinement is what leaves the gap unexplained, the retry is a whole
-    diagnosis, as before session 65."""
-    from bouncelab.gap.diagnose import diagnose_run
-
-    run_dir, flights = null_run
-    stand_in["unexplained"] = {0: True}
-    stand_in["before"] = {0: False}
-    r = diagnose_run(run_dir, flights=flights, progress=False)
-    assert stand_in["calls"] == [0, 1] and stand_in["refined"] == [0, 1]
-    assert r["design"]["seed"] == 1 and not r["retry"]["diagnoses"][0]["before_refinement"]
 
 
 def test_retries_stop_at_the_limit_and_keep_the_first(null_run, stand_in):
@@ -250,14 +177,14 @@ def test_no_retry_when_the_gap_is_clearly_above_the_limit(null_run, stand_in, mo
     far = {**_result(0, ["harmonic"], True, 3.75), "verdict_margin": margin(3.75, 0.49)}
     near = {**_result(0, ["harmonic"], True, 3.05), "verdict_margin": margin(3.05, 0.4)}
     assert not worth_a_retry(far) and worth_a_retry(near)
-    fake = diag.diagnosis_stages
+    fake = diag.diagnose_flights
 
     def far_above(*a, seed, **kw):
-        for r in fake(*a, seed=seed, **kw):
-            r["verdict_margin"] = margin(3.75, 0.49)
-            yield r
+        r = fake(*a, seed=seed, **kw)
+        r["verdict_margin"] = margin(3.75, 0.49)
+        return r
 
-    monkeypatch.setattr(diag, "diagnosis_stages", far_above)
+    monkeypatch.setattr(diag, "diagnose_flights", far_above)
     run_dir, flights = null_run
     stand_in["unexplained"] = {0: True}
     r = diag.diagnose_run(run_dir, flights=flights, progress=False)

@@ -14,7 +14,6 @@ import json
 import math
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -61,13 +60,12 @@ from bouncelab.gap.regions import segment_regions
 from bouncelab.gap.seeds import (
     RETRIES,
     majority_index,
-    reportable,
     retry_index,
     retry_warning,
     seed_check,
     seed_warning,
 )
-from bouncelab.gap.select import CANDIDATES, SelectSettings, heldout_gap, selection_stages
+from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
 from bouncelab.gap.takeoff_reading import (
     harmonic_refuted,
     read_takeoffs,
@@ -383,7 +381,7 @@ def _regions(
     return out
 
 
-def diagnosis_stages(
+def diagnose_flights(
     run,
     flights: pd.DataFrame,
     duration_s: float,
@@ -398,13 +396,8 @@ def diagnosis_stages(
     progress: bool | None = None,
     include_timings: bool = False,
     fixed: dict | None = None,
-) -> Iterator[dict]:
-    """The diagnosis of measured ``flights`` of a sweep ``run`` (see :func:`diagnose_run`)
-    in the two stages of :func:`bouncelab.gap.select.selection_stages`: yields first the
-    diagnosis of the selection's model before its refinement (``preview`` True: the verdict
-    the refinement would start from, about half the flights of a refined run), then the
-    diagnosis (``preview`` False, what :func:`diagnose_flights` returns). Close the
-    generator to skip the refinement.
+) -> dict:
+    """The diagnosis of measured ``flights`` of a sweep ``run`` (see :func:`diagnose_run`).
 
     ``run`` is a :class:`bouncelab.runs.Run`; ``duration_s`` the recording's length (s).
     ``fixed``: more parameters held at given values in every fit, beside the drop-test
@@ -461,7 +454,7 @@ def diagnosis_stages(
         p = model.params
         return harmonic_refuted(takeoffs, reading, p["k"], p["a"], p["psi"])
 
-    stages = selection_stages(
+    sel = forward_select(
         problem,
         floor,
         baseline=base_model.name,
@@ -477,252 +470,219 @@ def diagnosis_stages(
         harmonic_read=harmonic_read,
         refuted=refuted,
     )
+    base_fit: FitResult = sel["baseline"]
+    g_base = heldout_gap(base_fit, problem)
 
-    def result_of(sel: dict) -> dict:
-        # the diagnosis of one stage of the selection
-        base_fit: FitResult = sel["baseline"]
-        g_base = heldout_gap(base_fit, problem)
+    def shrink(g: float) -> float:
+        return float((g_base - g) / g_base) if g_base > 0 else 0.0
 
-        def shrink(g: float) -> float:
-            return float((g_base - g) / g_base) if g_base > 0 else 0.0
-
-        candidates = []
-        for eff, fit in sel["rounds"][0] if sel["rounds"] else []:
-            g = heldout_gap(fit, problem)
-            candidates.append(
-                {
-                    "effect": eff,
-                    "params": _params(fit.model),
-                    "gap": g,
-                    "shrink": shrink(g),
-                    "gap_fit": fit.objective,
-                    "model": fit.model.name,
-                    "n_evals": fit.n_evals,
-                }
-            )
-        steps, warnings, prev_g = [], [], g_base
-        last = len(sel["accepted"]) - 1
-        for i, (eff, fit) in enumerate(sel["accepted"]):
-            g = heldout_gap(fit, problem)
-            # the refined final fit's cloud and noise are of the averaged objective
-            fit_problem = sel["final_problem"] if i == last else problem
-            summary = summary_of(fit, fit_problem, i)
-            entry = {
+    candidates = []
+    for eff, fit in sel["rounds"][0] if sel["rounds"] else []:
+        g = heldout_gap(fit, problem)
+        candidates.append(
+            {
                 "effect": eff,
                 "params": _params(fit.model),
-                "params_ci": summary["params_ci"],
-                "objective_noise": summary["objective_noise"],
                 "gap": g,
-                "shrink": float((prev_g - g) / g_base) if g_base > 0 else 0.0,
-                "shrink_total": shrink(g),
-                "model": fit.model.name,
+                "shrink": shrink(g),
                 "gap_fit": fit.objective,
-                "warnings": summary["warnings"],
+                "model": fit.model.name,
                 "n_evals": fit.n_evals,
             }
-            if {"e", "mass_ratio"} <= set(fit.model.params):
-                # e in the other convention of an impact on the armature (physics.model)
-                entry["e_rigid_plate"] = rigid_plate_restitution(
-                    fit.model.params["e"], fit.model.params["mass_ratio"]
-                )
-            if calibration is not None:
-                entry["calibration"] = {
-                    p: float(calibration[k])
-                    for k, p in CALIBRATION_PARAMS.items()
-                    if p in fit.model.params
-                }
-            warnings += [step_warning(fit.model.name, w) for w in summary["warnings"]]
-            steps.append(entry)
-            prev_g = g
-
-        alternative = sel["armature_alternative"]
-        lines = alternative_warnings(alternative, floor)
-        if lines:  # (a new list: the step's own is its cached summary's)
-            steps[-1]["warnings"] = [*steps[-1]["warnings"], *lines]
-            warnings += [step_warning(steps[-1]["model"], line) for line in lines]
-
-        pair = sel["pair_check"] or {}
-        if "replaced_by" in pair:
-            a, b = pair["replaced_by"]
-            warnings.append(
-                f"the shaker's armature alone ({pair['armature']:.3g} noise floors held out) "
-                f"was replaced by {a} + {b} ({pair['pairs'][f'{a}+{b}']:.3g})"
-            )
-        for weak in sel["weak_dropped"]:
-            lo, hi = weak["interval"]
-            warnings.append(
-                f"{weak['effect']} was dropped: after the refinement its {weak['param']} "
-                f"interval [{lo:.4g}, {hi:.4g}] reaches its null value"
-            )
-
-        for ne in sel["not_earned"]:
-            warnings.append(
-                f"{ne['effect']} was not taken: its {ne['floors']:.3g} noise floors held out "
-                f"were the effects before it refitted ({ne['without']:.3g} without it)"
-            )
-
-        for tr in sel["takeoff_refused"]:
-            if not tr["proposed"]:
-                continue  # a harmonic no round or pair would have taken: in the JSON only
-            warnings.append(
-                f"{tr['effect']} (k = {tr['k']:g}, a = {tr['a']:.3g}) was refused "
-                + (
-                    f"in round {tr['round']}"
-                    if isinstance(tr["round"], int)
-                    else "in the pair check"
-                )
-                + f": it fits the takeoff phases {tr['rms_rad'] / tr['plain_rms_rad']:.3g} "
-                "times worse than no harmonic"
-            )
-
-        for pt in sel["phase_taken"]:
-            warnings.append(
-                f"{pt['effect']} was taken for the takeoff phases, not the flight times: "
-                f"{pt['floors']:.3g} noise floors held out against {pt['current']:.3g} before it, "
-                "whose phases were wrong"
-            )
-
-        final: FitResult = sel["final"]
-        final_gap = heldout_gap(final, problem)
-        margin = verdict_margin(problem, final.gaps, select_settings.unexplained_ratio)
-        heldout_gammas = problem.steps["gamma"].to_numpy(dtype=float)[problem.heldout]
-        warnings += margin_warnings(margin, heldout_gammas)
-        cmp_base = _features(problem, base_fit.model)
-        cmp_final = _features(problem, final.model) if sel["accepted"] else cmp_base
-
-        reasons = []
-        if final_gap > select_settings.unexplained_ratio * floor:
-            reasons.append(
-                f"held-out gap {final_gap:.4g} rad is {final_gap / floor:.3g} noise floors "
-                f"(limit {select_settings.unexplained_ratio:g})"
-            )
-        phase_base = sharp_phase_offset(problem, cmp_base)
-        phase_final = sharp_phase_offset(problem, cmp_final)
-        phase_reason = phase_shift_reason(phase_final)
-        if phase_reason:
-            reasons.append(phase_reason)
-        by_half = strength_by_half(problem, final.model) if sel["accepted"] else {}
-        drift = drift_reason(by_half)
-        if drift:
-            reasons.append(drift)
-
-        regions = _regions(problem, base_fit.gaps, sel["accepted"], cmp_base, select_settings)
-        out = {
-            "run": str(run.run_id),
-            "noise_floor": floor,
-            "baseline": {
-                "model": base_fit.model.name,
-                "gap": g_base,
-                "params": _params(base_fit.model),
-                "gap_fit": base_fit.objective,
-                "rel_gap": g_base / floor if floor > 0 else None,
-            },
-            "candidates": candidates,
-            "steps": steps,
-            "selected": [s["effect"] for s in steps],
-            "final_gap": final_gap,
-            "unexplained": bool(reasons),
-            "regions": regions,
-            "final_model": {"model": final.model.name, "params": _params(final.model)},
-            "final_rel_gap": final_gap / floor if floor > 0 else None,
-            # the final gap's standard error over the held-out steps, against the limit
-            "verdict_margin": margin,
-            "unexplained_reasons": reasons,
-            # friction's mu, restitution's e and a harmonic's a refitted on each half of the steps
-            "strength_by_half": by_half,
-            "stop": sel["stop"],
-            # the takeoff-phase reasons that kept the selection going within the floor
-            "went_on": sel["went_on"],
-            # an armature taken alone against every pair of the other effects, or null
-            "pair_check": sel["pair_check"],
-            # an armature taken alone against its other ride_load beside a Gamma miscalibration
-            "armature_alternative": alternative,
-            "weak_dropped": sel["weak_dropped"],
-            # additions whose gain was a better refit of the effects before them
-            "not_earned": sel["not_earned"],
-            # additions taken because their takeoff phases were right where the model's were not
-            "phase_taken": sel["phase_taken"],
-            # harmonics the takeoff phases refused: not proposed in their round
-            "takeoff_refused": sel["takeoff_refused"],
-            "rounds": [
-                [
-                    {
-                        "effect": eff,
-                        "model": fit.model.name,
-                        "params": _params(fit.model),
-                        "gap": heldout_gap(fit, problem),
-                        "n_evals": fit.n_evals,
-                        "flights": fit.flights,
-                    }
-                    for eff, fit in tried
-                ]
-                for tried in sel["rounds"]
-            ],
-            "warnings": warnings,
-            "features_differing": {
-                "baseline": cmp_base["differing"],
-                "final": cmp_final["differing"],
-            },
-            "phase_offset": {"baseline": phase_base, "final": phase_final},
-            "design": {
-                **_design(problem, fit_settings, select_settings, baseline, seed, fixed),
-                "refine": _refine_design(sel["refined"]),
-                "box": sel["box"],
-                # the harmonic read off the takeoff phases that started the harmonic's fits
-                "harmonic_read": harmonic_read,
-                # flights the kernels simulated for every fit: the diagnosis's work
-                "work": sel["work"],
-            },
-            "profile": {
-                "step": [int(s) for s in problem.steps["step"]],
-                "gamma": [float(g) for g in problem.steps["gamma"]],
-                "heldout": [bool(h) for h in problem.heldout],
-                "noise_floor": [float(v) for v in problem.floor],
-                "gap_baseline": [float(v) for v in base_fit.gaps],
-                "gap_after": [
-                    {"effect": eff, "gap": [float(v) for v in fit.gaps]}
-                    for eff, fit in sel["accepted"]
-                ],
-            },
+        )
+    steps, warnings, prev_g = [], [], g_base
+    last = len(sel["accepted"]) - 1
+    for i, (eff, fit) in enumerate(sel["accepted"]):
+        g = heldout_gap(fit, problem)
+        # the refined final fit's cloud and noise are of the averaged objective
+        fit_problem = sel["final_problem"] if i == last else problem
+        summary = summary_of(fit, fit_problem, i)
+        entry = {
+            "effect": eff,
+            "params": _params(fit.model),
+            "params_ci": summary["params_ci"],
+            "objective_noise": summary["objective_noise"],
+            "gap": g,
+            "shrink": float((prev_g - g) / g_base) if g_base > 0 else 0.0,
+            "shrink_total": shrink(g),
+            "model": fit.model.name,
+            "gap_fit": fit.objective,
+            "warnings": summary["warnings"],
+            "n_evals": fit.n_evals,
         }
+        if {"e", "mass_ratio"} <= set(fit.model.params):
+            # e in the other convention of an impact on the armature (physics.model)
+            entry["e_rigid_plate"] = rigid_plate_restitution(
+                fit.model.params["e"], fit.model.params["mass_ratio"]
+            )
         if calibration is not None:
-            out["calibration"] = {
-                "mu": float(calibration["mu"]),
-                "restitution": float(calibration["restitution"]),
-                "mu_ci": calibration.get("mu_ci"),
-                "restitution_ci": calibration.get("restitution_ci"),
-                "fixed": bool(fix_calibration),
+            entry["calibration"] = {
+                p: float(calibration[k])
+                for k, p in CALIBRATION_PARAMS.items()
+                if p in fit.model.params
             }
-            if calibration.get("run") is not None:  # calibrate writes its drop run's id
-                out["calibration"]["run"] = str(calibration["run"])
-        if include_timings:
-            out["timings"] = diagnosis_timings(time.perf_counter() - t0, sel["fit_log"])
-            # what the diagnosis of the rounds' model cost (the verdict a retry starts from)
-            out["timings"]["preview_s"] = preview_s
-        if sel["preview"]:
-            out["preview"] = True  # the rounds' model, not refined: never written out
-        return _json_safe(out)
+        warnings += [step_warning(fit.model.name, w) for w in summary["warnings"]]
+        steps.append(entry)
+        prev_g = g
 
-    preview_s = None
-    try:
-        for sel in stages:
-            started = time.perf_counter()
-            result = result_of(sel)
-            if sel["preview"]:
-                preview_s = time.perf_counter() - started
-            paused = time.perf_counter()
-            yield result
-            # the timings are this diagnosis's own: not the other seeds' searched meanwhile
-            t0 += time.perf_counter() - paused
-    finally:
-        stages.close()
+    alternative = sel["armature_alternative"]
+    lines = alternative_warnings(alternative, floor)
+    if lines:  # (a new list: the step's own is its cached summary's)
+        steps[-1]["warnings"] = [*steps[-1]["warnings"], *lines]
+        warnings += [step_warning(steps[-1]["model"], line) for line in lines]
 
+    pair = sel["pair_check"] or {}
+    if "replaced_by" in pair:
+        a, b = pair["replaced_by"]
+        warnings.append(
+            f"the shaker's armature alone ({pair['armature']:.3g} noise floors held out) "
+            f"was replaced by {a} + {b} ({pair['pairs'][f'{a}+{b}']:.3g})"
+        )
+    for weak in sel["weak_dropped"]:
+        lo, hi = weak["interval"]
+        warnings.append(
+            f"{weak['effect']} was dropped: after the refinement its {weak['param']} "
+            f"interval [{lo:.4g}, {hi:.4g}] reaches its null value"
+        )
 
-def diagnose_flights(run, flights: pd.DataFrame, duration_s: float, **options) -> dict:
-    """The diagnosis of measured ``flights`` of a sweep ``run``: the last stage of
-    :func:`diagnosis_stages` (its options), the selected model refined."""
-    *_, result = diagnosis_stages(run, flights, duration_s, **options)
-    return result
+    for ne in sel["not_earned"]:
+        warnings.append(
+            f"{ne['effect']} was not taken: its {ne['floors']:.3g} noise floors held out "
+            f"were the effects before it refitted ({ne['without']:.3g} without it)"
+        )
+
+    for tr in sel["takeoff_refused"]:
+        if not tr["proposed"]:
+            continue  # a harmonic no round or pair would have taken: in the JSON only
+        warnings.append(
+            f"{tr['effect']} (k = {tr['k']:g}, a = {tr['a']:.3g}) was refused "
+            + (f"in round {tr['round']}" if isinstance(tr["round"], int) else "in the pair check")
+            + f": it fits the takeoff phases {tr['rms_rad'] / tr['plain_rms_rad']:.3g} "
+            "times worse than no harmonic"
+        )
+
+    for pt in sel["phase_taken"]:
+        warnings.append(
+            f"{pt['effect']} was taken for the takeoff phases, not the flight times: "
+            f"{pt['floors']:.3g} noise floors held out against {pt['current']:.3g} before it, "
+            "whose phases were wrong"
+        )
+
+    final: FitResult = sel["final"]
+    final_gap = heldout_gap(final, problem)
+    margin = verdict_margin(problem, final.gaps, select_settings.unexplained_ratio)
+    heldout_gammas = problem.steps["gamma"].to_numpy(dtype=float)[problem.heldout]
+    warnings += margin_warnings(margin, heldout_gammas)
+    cmp_base = _features(problem, base_fit.model)
+    cmp_final = _features(problem, final.model) if sel["accepted"] else cmp_base
+
+    reasons = []
+    if final_gap > select_settings.unexplained_ratio * floor:
+        reasons.append(
+            f"held-out gap {final_gap:.4g} rad is {final_gap / floor:.3g} noise floors "
+            f"(limit {select_settings.unexplained_ratio:g})"
+        )
+    phase_base = sharp_phase_offset(problem, cmp_base)
+    phase_final = sharp_phase_offset(problem, cmp_final)
+    phase_reason = phase_shift_reason(phase_final)
+    if phase_reason:
+        reasons.append(phase_reason)
+    by_half = strength_by_half(problem, final.model) if sel["accepted"] else {}
+    drift = drift_reason(by_half)
+    if drift:
+        reasons.append(drift)
+
+    regions = _regions(problem, base_fit.gaps, sel["accepted"], cmp_base, select_settings)
+    out = {
+        "run": str(run.run_id),
+        "noise_floor": floor,
+        "baseline": {
+            "model": base_fit.model.name,
+            "gap": g_base,
+            "params": _params(base_fit.model),
+            "gap_fit": base_fit.objective,
+            "rel_gap": g_base / floor if floor > 0 else None,
+        },
+        "candidates": candidates,
+        "steps": steps,
+        "selected": [s["effect"] for s in steps],
+        "final_gap": final_gap,
+        "unexplained": bool(reasons),
+        "regions": regions,
+        "final_model": {"model": final.model.name, "params": _params(final.model)},
+        "final_rel_gap": final_gap / floor if floor > 0 else None,
+        # the final gap's standard error over the held-out steps, against the limit
+        "verdict_margin": margin,
+        "unexplained_reasons": reasons,
+        # friction's mu, restitution's e and a harmonic's a refitted on each half of the steps
+        "strength_by_half": by_half,
+        "stop": sel["stop"],
+        # the takeoff-phase reasons that kept the selection going within the floor
+        "went_on": sel["went_on"],
+        # an armature taken alone against every pair of the other effects, or null
+        "pair_check": sel["pair_check"],
+        # an armature taken alone against its other ride_load beside a Gamma miscalibration
+        "armature_alternative": alternative,
+        "weak_dropped": sel["weak_dropped"],
+        # additions whose gain was a better refit of the effects before them
+        "not_earned": sel["not_earned"],
+        # additions taken because their takeoff phases were right where the model's were not
+        "phase_taken": sel["phase_taken"],
+        # harmonics the takeoff phases refused: not proposed in their round
+        "takeoff_refused": sel["takeoff_refused"],
+        "rounds": [
+            [
+                {
+                    "effect": eff,
+                    "model": fit.model.name,
+                    "params": _params(fit.model),
+                    "gap": heldout_gap(fit, problem),
+                    "n_evals": fit.n_evals,
+                    "flights": fit.flights,
+                }
+                for eff, fit in tried
+            ]
+            for tried in sel["rounds"]
+        ],
+        "warnings": warnings,
+        "features_differing": {
+            "baseline": cmp_base["differing"],
+            "final": cmp_final["differing"],
+        },
+        "phase_offset": {"baseline": phase_base, "final": phase_final},
+        "design": {
+            **_design(problem, fit_settings, select_settings, baseline, seed, fixed),
+            "refine": _refine_design(sel["refined"]),
+            "box": sel["box"],
+            # the harmonic read off the takeoff phases that started the harmonic's fits
+            "harmonic_read": harmonic_read,
+            # flights the kernels simulated for every fit: the diagnosis's work
+            "work": sel["work"],
+        },
+        "profile": {
+            "step": [int(s) for s in problem.steps["step"]],
+            "gamma": [float(g) for g in problem.steps["gamma"]],
+            "heldout": [bool(h) for h in problem.heldout],
+            "noise_floor": [float(v) for v in problem.floor],
+            "gap_baseline": [float(v) for v in base_fit.gaps],
+            "gap_after": [
+                {"effect": eff, "gap": [float(v) for v in fit.gaps]} for eff, fit in sel["accepted"]
+            ],
+        },
+    }
+    if calibration is not None:
+        out["calibration"] = {
+            "mu": float(calibration["mu"]),
+            "restitution": float(calibration["restitution"]),
+            "mu_ci": calibration.get("mu_ci"),
+            "restitution_ci": calibration.get("restitution_ci"),
+            "fixed": bool(fix_calibration),
+        }
+        if calibration.get("run") is not None:  # calibrate writes its drop run's id
+            out["calibration"]["run"] = str(calibration["run"])
+    if include_timings:
+        out["timings"] = diagnosis_timings(time.perf_counter() - t0, sel["fit_log"])
+    return _json_safe(out)
 
 
 def diagnosis_timings(total_s: float, fit_log: list[dict]) -> dict:
@@ -960,10 +920,8 @@ def diagnose_run(
         not on a borderline verdict (:func:`bouncelab.gap.seeds.retry_index`), with
         ``retry`` (the :func:`bouncelab.gap.seeds.seed_check` of the seeds tried) and a
         warning; when none does, the first seed's diagnosis, with ``retry`` (and a warning
-        where a retry explained the run on a borderline verdict). Each retry costs a
-        search, only on runs left unexplained; where the first search already leaves the
-        gap unexplained before its refinement, only the diagnosis reported is refined
-        (:func:`retried_diagnoses`); 0: never.
+        where a retry explained the run on a borderline verdict). Each retry costs a whole
+        diagnosis, only on runs left unexplained; 0: never.
     fix_accel : hold what the run's accelerometer reads (:func:`accel_calibration`,
         :func:`accel_fixed`) as ``fix_calibration`` holds ``mu`` and ``e``:
         ``gamma_scale``'s ``s``; the ``feedback``'s ``f_ratio`` and ``zeta`` where it reads
@@ -1013,32 +971,31 @@ def diagnose_run(
     fixed = accel_fixed(accel) if fix_accel else None
     read_s = time.perf_counter() - t0
 
-    options = {
-        "calibration": calibration,
-        "fix_calibration": fix_calibration,
-        "baseline": baseline,
-        "fit_settings": fit_settings,
-        "select_settings": select_settings,
-        "workers": workers,
-        "progress": progress,
-        "include_timings": include_timings,
-        "fixed": fixed,
-    }
-
-    def stages(with_seed: int) -> Iterator[dict]:
-        return diagnosis_stages(run, table, duration, seed=with_seed, **options)
-
     def diagnosis(with_seed: int) -> dict:
-        return diagnose_flights(run, table, duration, seed=with_seed, **options)
+        return diagnose_flights(
+            run,
+            table,
+            duration,
+            calibration=calibration,
+            fix_calibration=fix_calibration,
+            baseline=baseline,
+            seed=with_seed,
+            fit_settings=fit_settings,
+            select_settings=select_settings,
+            workers=workers,
+            progress=progress,
+            include_timings=include_timings,
+            fixed=fixed,
+        )
 
     shown = progress if progress is not None else sys.stderr.isatty()
     results = []
+    for j in range(check_seeds):
+        if check_seeds > 1 and shown:
+            # a long wait: say which of the seeds' diagnoses the fits' bars belong to
+            print(f"diagnosis with seed {seed + j} ({j + 1} of {check_seeds})", file=sys.stderr)
+        results.append(diagnosis(seed + j))
     if check_seeds > 1:
-        for j in range(check_seeds):
-            if shown:
-                # a long wait: say which of the seeds' diagnoses the fits' bars belong to
-                print(f"diagnosis with seed {seed + j} ({j + 1} of {check_seeds})", file=sys.stderr)
-            results.append(diagnosis(seed + j))
         reported = majority_index(results)
         result = results[reported]
         result["seed_check"] = seed_check(results, reported)
@@ -1049,7 +1006,20 @@ def diagnose_run(
         # a search that left the gap unexplained is searched again with other draws until
         # one explains it, not on a borderline verdict (docs/diagnosis.md section 1,
         # "Retries of an unexplained run")
-        results, reported = retried_diagnoses(stages, seed, retries, shown)
+        while worth_a_retry(results[0]) and retry_index(results) == 0 and len(results) <= retries:
+            if shown:
+                how = (
+                    "left the gap unexplained"
+                    if results[-1]["unexplained"]
+                    else "explained the run on a borderline verdict"
+                )
+                print(
+                    f"seed {seed + len(results) - 1} {how}: diagnosis with seed "
+                    f"{seed + len(results)} (retry {len(results)} of {retries})",
+                    file=sys.stderr,
+                )
+            results.append(diagnosis(seed + len(results)))
+        reported = retry_index(results)
         result = results[reported]
         if len(results) > 1:
             result["retry"] = seed_check(results, reported)
@@ -1077,74 +1047,6 @@ def diagnose_run(
             "fits": result["timings"]["fits"],
         }
     return result
-
-
-def retried_diagnoses(
-    stages, seed: int, retries: int, shown: bool = False
-) -> tuple[list[dict], int]:
-    """The diagnoses of one run with seeds ``seed``, ``seed + 1``, ... as the retry rule
-    asks for them (:func:`worth_a_retry`, :func:`bouncelab.gap.seeds.retry_index`, at
-    most ``retries`` more), and the index of the one to report, which is refined.
-
-    ``stages``: ``seed -> generator`` of :func:`diagnosis_stages` (the run's diagnosis,
-    first before the refinement, then refined). Where the first seed's search explains
-    the run before its refinement, it is refined and the retry rule applied to its
-    refined verdict, each retry a whole diagnosis (as before session 65). Where the
-    first search already leaves the gap unexplained, the next seeds are searched first
-    (while none explains the run, not on a borderline verdict), then refined one by one,
-    those that explain it first and then by their held-out gap before the refinement,
-    until one refined explains the run (a retry: not on a borderline verdict); it is
-    reported, else the first seed's. The searches not refined stay in the list as they
-    were (``preview`` True).
-
-    Why: the refinement is over half of a refined diagnosis's flights (57 % on blind
-    ``seed_like`` at diagnosis seed 20, 73 s of 139; docs/diagnosis-log.md, session 64)
-    and of two searches one is reported. Why not judge the retry on its search alone: the
-    refinement can set its takeoff phases right (blind ``seed_like_b`` at diagnosis seed
-    19: its retry unexplained at 1.43 floors before the refinement, explained after;
-    session 65).
-    """
-
-    def say(done: list[dict]) -> None:
-        if shown:
-            how = (
-                "left the gap unexplained"
-                if done[-1]["unexplained"]
-                else "explained the run on a borderline verdict"
-            )
-            print(
-                f"seed {seed + len(done) - 1} {how}: diagnosis with seed "
-                f"{seed + len(done)} (retry {len(done)} of {retries})",
-                file=sys.stderr,
-            )
-
-    first = stages(seed)
-    preview = next(first)
-    if not worth_a_retry(preview):
-        results = [next(first)]
-        while worth_a_retry(results[0]) and retry_index(results) == 0 and len(results) <= retries:
-            say(results)
-            *_, retried = stages(seed + len(results))
-            results.append(retried)
-        return results, retry_index(results)
-    searches, results = [first], [preview]
-    try:
-        while retry_index(results) == 0 and len(results) <= retries:
-            say(results)
-            searches.append(stages(seed + len(results)))
-            results.append(next(searches[-1]))
-        order = sorted(
-            range(len(results)),
-            key=lambda i: (not reportable(results[i], i > 0), results[i]["final_rel_gap"], i),
-        )
-        for i in order:
-            results[i] = next(searches[i])
-            if reportable(results[i], i > 0):
-                return results, i
-        return results, 0
-    finally:
-        for search in searches:
-            search.close()  # the pools of the searches not refined
 
 
 def accel_calibration(run, flights: pd.DataFrame | None = None) -> tuple[dict | None, list[str]]:

@@ -46,8 +46,6 @@ def _summary(result: dict) -> dict:
         "borderline": bool(margin.get("borderline")),
         "gap_se": margin.get("se"),
         "params": {k: float(v) for k, v in (final.get("params") or {}).items()},
-        # a search not refined: another seed's diagnosis was reported without it
-        "before_refinement": bool(result.get("preview", False)),
     }
 
 
@@ -138,12 +136,6 @@ def seed_check(results: list[dict], reported: int = 0) -> dict:
     }
 
 
-def _unrefined(row: dict) -> bool:
-    """Whether a row of :func:`seed_check` is of a search left unrefined (a retry's other
-    seed; rows written before session 65 have no such key)."""
-    return bool(row.get("before_refinement"))
-
-
 def _conclusion(row: dict) -> str:
     chosen = " + ".join(row["selected"]) or "nothing"
     verdict = "unexplained" if row["unexplained"] else "explained"
@@ -187,13 +179,14 @@ def retry_index(results: list[dict]) -> int:
     """
     if not results:
         raise ValueError("retry_index needs at least one diagnosis")
-    return next((i for i, r in enumerate(results) if reportable(r, retried=i > 0)), 0)
-
-
-def reportable(result: dict, retried: bool) -> bool:
-    """Whether a diagnosis is one :func:`retry_index` reports: it explains the run, and
-    a ``retried`` one (not the first seed's) not on a borderline verdict."""
-    return not result["unexplained"] and not (retried and _borderline(result))
+    return next(
+        (
+            i
+            for i, r in enumerate(results)
+            if not r["unexplained"] and (i == 0 or not _borderline(r))
+        ),
+        0,
+    )
 
 
 def borderline_retries(check: dict) -> list[dict]:
@@ -217,16 +210,14 @@ def retry_warning(check: dict) -> str | None:
         if not refused:
             return None
         r = refused[0]
-        unrefined = " (its search's model before the refinement)" if _unrefined(r) else ""
         return (
-            f"{_conclusion(r)} at {r['final_rel_gap']:.2f} noise floors{unrefined}, within one "
+            f"{_conclusion(r)} at {r['final_rel_gap']:.2f} noise floors, within one "
             f"standard error of the limit: not reported, seed {first['seed']}'s "
             "unexplained diagnosis stands (a borderline second draw is no model found)"
         )
     reported = next(r for r in check["diagnoses"] if r["seed"] == check["reported_seed"])
-    unrefined = ", its search's model before the refinement" if _unrefined(first) else ""
     return (
-        f"{_conclusion(first)} (gap {first['final_rel_gap']:.2f} noise floors{unrefined}); "
+        f"{_conclusion(first)} (gap {first['final_rel_gap']:.2f} noise floors); "
         f"{_conclusion(reported)} ({reported['final_rel_gap']:.2f}), reported: the first "
         "search missed a model the second found; read the effects as one draw of several"
     )

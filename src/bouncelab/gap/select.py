@@ -967,14 +967,7 @@ def _pooled_cloud(fit: FitResult, earlier: FitResult) -> FitResult:
     )
 
 
-def forward_select(problem: Problem, floor: float, **options) -> dict:
-    """Forward selection from ``baseline`` over ``candidates``: the last stage of
-    :func:`selection_stages` (its options and returned dict), the selected model refined."""
-    *_, selection = selection_stages(problem, floor, **options)
-    return selection
-
-
-def selection_stages(
+def forward_select(
     problem: Problem,
     floor: float,
     *,
@@ -992,16 +985,7 @@ def selection_stages(
     harmonic_read: dict | None = None,
     refuted=None,
 ) -> dict:
-    """Forward selection from ``baseline`` over ``candidates`` (see the module docstring),
-    in two stages: yields the selection as its rounds left it (the selected model not yet
-    refined: ``refined`` None, ``preview`` True), then the selection itself (``preview``
-    False). The evaluation pool stays open in between; a caller that wants only the first
-    stage closes the generator.
-
-    Why two: a diagnosis that its first stage already shows to be retried with another
-    seed need not pay for the refinement of a search that will not be reported
-    (:func:`bouncelab.gap.diagnose.diagnose_run`); the refinement is over half of a
-    refined diagnosis's flights (docs/diagnosis-log.md, session 64).
+    """Forward selection from ``baseline`` over ``candidates`` (see the module docstring).
 
     Parameters
     ----------
@@ -1051,9 +1035,9 @@ def selection_stages(
         takeoff phases show no such plate (docs/diagnosis.md section 1, "A harmonic the
         takeoffs refuse").
 
-    Yields
-    ------
-    dicts with ``preview``, ``baseline`` (FitResult), ``rounds`` (list of lists of
+    Returns
+    -------
+    dict with ``baseline`` (FitResult), ``rounds`` (list of lists of
     ``(effect, FitResult)``: every addition tried in each round; the first round is
     fitted even when the baseline is within the floor), ``accepted`` (list of
     ``(effect, FitResult)`` in order; the last one refined when
@@ -1275,26 +1259,6 @@ def selection_stages(
             accepted, pair_check, pair_fits = check_pairs(accepted)
             if pair_check is not None and "replaced_by" in pair_check:
                 current = accepted[-1][1]
-        yield {
-            "preview": True,
-            "baseline": base_fit,
-            "rounds": list(rounds),
-            "accepted": list(accepted),
-            "final": current,
-            "stop": stop,
-            "final_problem": problem,
-            "refined": None,
-            "went_on": list(went_on),
-            "pair_check": pair_check,
-            "armature_alternative": None,
-            "box": None,
-            "weak_dropped": [],
-            "not_earned": list(not_earned),
-            "phase_taken": list(phase_taken),
-            "takeoff_refused": [dict(t) for t in takeoff_refused],
-            "work": {"flights": work.flights},
-            "fit_log": list(work.fits),
-        }
         final_problem, refined = problem, None
         if accepted:
             done = [base_fit] + [f for tried in rounds for _e, f in tried] + pair_fits
@@ -1361,8 +1325,7 @@ def selection_stages(
         alternative = armature_alternative(
             accepted, (problem, fixed, fit_settings, seed), pool, progress, work, round1_armatures
         )
-    yield {
-        "preview": False,
+    return {
         "baseline": base_fit,
         "rounds": rounds,
         "accepted": accepted,

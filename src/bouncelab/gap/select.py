@@ -510,15 +510,17 @@ def _worth_searching_again(tried, problem: Problem, floor: float, settings) -> b
 def _armature_leads(tried, problem: Problem, floor: float, settings: SelectSettings) -> bool:
     """Whether the armature of ``tried`` is the round's proposal, more than ``tie`` floors
     of held-out gap ahead of every other addition, and within ``explained_ratio``
-    floors: the round takes it and the run is explained with it, so its extra optimiser
-    seeds (:func:`_armature_seeds`) could move only its parameters, and the runner-up's
+    floors: the round takes it and the run is explained with it, so the runner-up's
     second start (:func:`_runner_up_start`) would have to gain more than the lead to
-    change the round (on the seed-like runs it gained nothing, session 61): neither runs.
+    change the round (on the seed-like runs it gained nothing, session 61): it does not
+    run.
 
-    Why: the seeds are for an armature tied with a simpler stand-in (:data:`ARMATURE_SEEDS`).
-    On the compliant ``seed_like`` (session 60) the armature led a Gamma miscalibration by
-    0.83 floors at 1.04; its two seeds came out at 1.06 and 2.06 floors, both with a
-    larger fit-step objective than the first search, and cost 30 s of a 125-s run.
+    Not used for the armature's own extra seeds (:func:`_armature_seeds`): they cannot
+    change the round's choice, but they move the armature's parameters, and the verdict
+    (the takeoff phases, the drift of friction) rests on those. Skipping them where the
+    armature leads (session 60) turned the blind ``seed_like_c`` at diagnosis seed 21
+    from explained at 1.63 floors to unexplained at 2.31, flagged on its phases, and paid
+    a whole retry for the 13 % of flights it saved (docs/diagnosis-log.md, session 66).
     """
     pick = _proposal(tried, problem, floor, settings.tie)
     if pick is None or pick[0] != "feedback":
@@ -535,20 +537,18 @@ def _armature_seeds(tried, job, pool, progress, floor, settings, work: WorkTally
 
     Runs after :func:`_armature_again`, with the ``ride_load`` it kept. Skipped when
     the armature already settles the run (:func:`_settled`), for the time goal
-    (``raw/sweep_g0-8`` is settled at 0.81 floors by its armature), when it leads the
-    round clearly (:func:`_armature_leads`: the seeds could move only its parameters),
-    and when no armature is added. Why more seeds: see :data:`ARMATURE_SEEDS`. Why after the other
-    choice: where that choice settles the run, the seeds are saved (independent
-    ``seed_like_impacts_only``: the other choice at 0.94 floors with the same final
-    model as the seeds first, 302 million flights for 384, 116 s for 146 s;
-    docs/diagnosis-log.md, sessions 30-31).
+    (``raw/sweep_g0-8`` is settled at 0.81 floors by its armature), and when no
+    armature is added. Not skipped where the armature leads the round clearly: the
+    seeds move its parameters, on which the verdict rests (:func:`_armature_leads`).
+    Why more seeds: see :data:`ARMATURE_SEEDS`. Why after the other choice: where that
+    choice settles the run, the seeds are saved (independent ``seed_like_impacts_only``:
+    the other choice at 0.94 floors with the same final model as the seeds first, 302
+    million flights for 384, 116 s for 146 s; docs/diagnosis-log.md, sessions 30-31).
     """
     if job is None or ARMATURE_SEEDS <= 1:
         return tried
     problem, name, start, fixed, search, fit_settings, seed, *more = job
-    if not _worth_searching_again(tried, problem, floor, settings) or _armature_leads(
-        tried, problem, floor, settings
-    ):
+    if not _worth_searching_again(tried, problem, floor, settings):
         return tried
     mine = dict(tried)
     kept = mine["feedback"].model.params.get("ride_load")  # the choice _armature_again kept

@@ -75,7 +75,12 @@ def best_so_far(problem, fit, n_evals: int) -> int:
 def progress_rows(problem, fit, maxiter: int, truth: dict, limit: float) -> list[dict]:
     """One row per checkpoint generation: the best point so far, its held-out gap in
     floors (the verdict's mean of capped gap over floor), phases and parameter errors."""
-    from bouncelab.gap.diagnose import _features, phase_shift_reason, sharp_phase_offset
+    from bouncelab.gap.diagnose import (
+        _features,
+        phase_shift_reason,
+        sharp_phase_offset,
+        verdict_margin,
+    )
     from bouncelab.gap.fit import decode
     from bouncelab.physics import Model
 
@@ -86,7 +91,6 @@ def progress_rows(problem, fit, maxiter: int, truth: dict, limit: float) -> list
         i = best_so_far(problem, fit, n)
         params = {**fit.model.params, **decode(fit.free, fit.cloud_x[i])}
         model = Model.parse(fit.model.name, params)
-        ratio = (problem.clipped(fit.cloud_gaps[i]) / problem.floor)[problem.heldout]
         phase = sharp_phase_offset(problem, _features(problem, model))
         reason = phase_shift_reason(phase)
         errors = {
@@ -94,7 +98,7 @@ def progress_rows(problem, fit, maxiter: int, truth: dict, limit: float) -> list
             for eff, true in truth.items()
             for k, v in relative_errors(true, params).items()
         }
-        rel = float(ratio.mean())
+        rel = verdict_margin(problem, fit.cloud_gaps[i], limit)["rel_gap"]
         rows.append(
             {
                 "generation": g,

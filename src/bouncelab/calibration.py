@@ -80,15 +80,33 @@ def bounce_sequence(t_fall_s, takeoff_s, landing_s, min_flight_s: float = MIN_FL
     """The usable bounce flights after the first contact, s: shape (n,).
 
     Takes the flights in order from the first one, and stops at the first flight
-    shorter than ``min_flight_s`` or not shorter than its predecessor (the sequence
+    shorter than ``min_flight_s`` or not shorter than the bounce before it (the sequence
     of a free drop only shrinks; anything else is chatter, rest or a new disturbance).
+
+    Flights shorter than ``min_flight_s`` followed, within ``min_flight_s`` of the first
+    one's takeoff, by a flight of at least ``min_flight_s`` are part of an impact, not
+    bounces, and are skipped: the contact chattering, or an RC tail longer than the
+    contact read as contact, opening, contact again (a sound card's drop test at 44.1
+    kHz, where too few clean edges exist to measure the RC). The bounce then starts where
+    the impact's last contact ends.
     """
-    f = np.asarray(landing_s, dtype=np.float64) - np.asarray(takeoff_s, dtype=np.float64)
+    ta = np.asarray(takeoff_s, dtype=np.float64)
+    f = np.asarray(landing_s, dtype=np.float64) - ta
     out = []
-    for i, d in enumerate(f):
-        if d < min_flight_s or (i > 0 and d >= f[i - 1]):
+    i = 0
+    while i < f.size:
+        if f[i] < min_flight_s:
+            j = i + 1
+            while j < f.size and f[j] < min_flight_s and ta[j] - ta[i] < min_flight_s:
+                j += 1
+            if j < f.size and f[j] >= min_flight_s and ta[j] - ta[i] < min_flight_s:
+                i = j  # within an impact
+                continue
             break
-        out.append(d)
+        if out and f[i] >= out[-1]:
+            break
+        out.append(f[i])
+        i += 1
     return np.asarray(out)
 
 

@@ -19,8 +19,18 @@ from bouncelab.errors import BouncelabError
 SUBCOMMANDS = ("validate", "extract", "calibrate", "simulate", "diagnose", "rig")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its usage errors as one ``error:`` line too (a missing ``-o``, an
+    unknown option): argparse's own two lines (usage, then ``prog: error: ...``) do not
+    start with ``error:`` as CONTRACTS.md section 2 asks. The subcommands' parsers are of
+    this class as well (``add_subparsers`` takes the parent's class)."""
+
+    def error(self, message: str):
+        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="bouncelab",
         description="Bouncing ball on a vibrating plate: runs, flights, models, gap diagnosis.",
     )

@@ -65,7 +65,13 @@ from bouncelab.gap.seeds import (
     seed_check,
     seed_warning,
 )
-from bouncelab.gap.select import CANDIDATES, SelectSettings, forward_select, heldout_gap
+from bouncelab.gap.select import (
+    CANDIDATES,
+    INERT,
+    SelectSettings,
+    forward_select,
+    heldout_gap,
+)
 from bouncelab.gap.takeoff_reading import (
     harmonic_refuted,
     read_takeoffs,
@@ -308,6 +314,51 @@ def _params(model: Model) -> dict:
     return {k: float(v) for k, v in sorted(model.params.items())}
 
 
+def candidate_entry(
+    effect: str,
+    fit: FitResult,
+    gap: float,
+    base_objective: float,
+    base_gap: float,
+    fixed: dict | None = None,
+) -> dict:
+    """The JSON of a round-1 candidate: ``effect`` added alone to the baseline, refitted.
+
+    ``gap``: the fit's held-out gap (rad); ``base_objective`` and ``base_gap``: the
+    baseline fit's fit-step objective and held-out gap (rad); ``fixed``: parameters held
+    (a drop-test calibration with ``--fix-calibration``), which are reported as held.
+
+    Where the search ended worse on its own fit steps than the baseline, which is the
+    candidate at its null value (:data:`bouncelab.gap.select.INERT`: e 0, mu 0, ...,
+    the same flights to the bit), the candidate is reported at that null value with the
+    baseline's gaps, shrink 0, and ``at_null: true``. Why: a refit cannot do worse than
+    a point of its own parameter space; on a run the ideal ball explains, restitution's
+    search found every drawn e in [0.03, 0.95] equally capped (each adds rebounds the
+    data lack), stopped at its start e 0.515, and was reported 55 times worse than the
+    baseline. The selection is untouched: it never takes a candidate worse than the
+    baseline.
+    """
+    entry = {
+        "effect": effect,
+        "params": _params(fit.model),
+        "gap": float(gap),
+        "shrink": float((base_gap - gap) / base_gap) if base_gap > 0 else 0.0,
+        "gap_fit": fit.objective,
+        "model": fit.model.name,
+        "n_evals": fit.n_evals,
+    }
+    name, null, _ = INERT.get(effect, (None, None, None))
+    if fit.objective > base_objective and name is not None and name not in (fixed or {}):
+        entry |= {
+            "params": {**entry["params"], name: float(null)},
+            "gap": float(base_gap),
+            "shrink": 0.0,
+            "gap_fit": float(base_objective),
+            "at_null": True,
+        }
+    return entry
+
+
 def _fit_summary(fit: FitResult, problem: Problem, seed: int, n_boot: int) -> dict:
     """Intervals and warnings of an accepted fit.
 
@@ -476,20 +527,10 @@ def diagnose_flights(
     def shrink(g: float) -> float:
         return float((g_base - g) / g_base) if g_base > 0 else 0.0
 
-    candidates = []
-    for eff, fit in sel["rounds"][0] if sel["rounds"] else []:
-        g = heldout_gap(fit, problem)
-        candidates.append(
-            {
-                "effect": eff,
-                "params": _params(fit.model),
-                "gap": g,
-                "shrink": shrink(g),
-                "gap_fit": fit.objective,
-                "model": fit.model.name,
-                "n_evals": fit.n_evals,
-            }
-        )
+    candidates = [
+        candidate_entry(eff, fit, heldout_gap(fit, problem), base_fit.objective, g_base, fixed)
+        for eff, fit in (sel["rounds"][0] if sel["rounds"] else [])
+    ]
     steps, warnings, prev_g = [], [], g_base
     last = len(sel["accepted"]) - 1
     for i, (eff, fit) in enumerate(sel["accepted"]):

@@ -12,8 +12,11 @@ apart (``all_median_us``, ``all_p99_us``): some of their openings are shorter th
 one sample can show, and a missed one makes its neighbour match the wrong flight.
 """
 
+import shutil
+
 import numpy as np
 import pytest
+import yaml
 
 from bouncelab.flights import extract_run
 from bouncelab.rig import read_truth
@@ -108,3 +111,32 @@ def test_phase_and_settled(make_rig):
     assert (flights["settled"] == ~early).all()
     assert np.allclose(flights["T"], 2 * np.pi * 30.0 * flights["flight_s"])
     assert ((flights["phi_takeoff"] >= 0) & (flights["phi_takeoff"] < 2 * np.pi)).all()
+
+
+@pytest.mark.parametrize("contact_v, open_v", [(0.0, 5.0), (5.0, 0.0)])
+def test_auto_polarity_where_contacts_outlast_flights(make_rig, tmp_path, contact_v, open_v):
+    """A sweep with no step below Gamma 1 (so no rest to read the contact level from) and
+    only Gammas where the body is on the plate most of each cycle: the share-of-time rule
+    alone took the contacts for flights (a black-box probe's Gamma 1.2-1.3 run: all 900
+    'flights' were contacts, median takeoff phase 3.4 rad, and no word of it). The drive's
+    phases of the takeoffs from rest, at asin(1 / Gamma), set it right. Reference: the
+    rig's truth; targets as above (found >= 99.5 %, false <= 0.1 %)."""
+    cfg = {
+        "kind": "sweep",
+        "seed": 5,
+        "body": {"restitution": 0.0},
+        "protocol": {"gammas": [1.15, 1.25, 1.35], "cycles_per_step": 120},
+        "sensors": {"continuity": {"contact_v": contact_v, "open_v": open_v}},
+    }
+    rig_dir, truth_path = make_rig(f"low_gamma_only_{contact_v:g}", cfg)
+    run_dir = tmp_path / "auto"
+    shutil.copytree(rig_dir, run_dir)
+    spec = yaml.safe_load((run_dir / "run.yaml").read_text())
+    (run_dir / "run.yaml").write_text(yaml.safe_dump(spec | {"contact_level": "auto"}))
+    flights, _ = extract_run(run_dir)
+    truth, params = read_truth(truth_path)
+    acc = accuracy(flights, truth, params["derived"]["duration_s"])
+    print(acc)
+    assert acc["found_long"] >= 0.995 and acc["false"] <= 0.001
+    contact = flights["contact_before_s"].to_numpy()[1:]
+    assert np.median(contact) > np.median(flights["flight_s"])  # contacts do outlast flights

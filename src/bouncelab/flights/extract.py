@@ -259,6 +259,53 @@ def drive_frequencies(drive, steps, fs, freq_hz, time_s) -> dict:
     return out
 
 
+#: A takeoff after a contact of at least this many drive cycles is a takeoff from rest.
+STUCK_CYCLES = 0.25
+#: Takeoffs from rest a polarity needs before its phases can judge it.
+MIN_STUCK_TAKEOFFS = 20
+#: Share of takeoffs from rest in the plate's falling half-cycle that refutes a polarity,
+#: and the share the other polarity must reach to replace it.
+REFUTED_SHARE, CONFIRMED_SHARE = 0.25, 0.75
+
+
+def stuck_takeoff_share(flights: pd.DataFrame, drive_freq_hz: float) -> tuple[float, int]:
+    """Share of the takeoffs from rest that fall where the plate accelerates downward.
+
+    A body resting on the plate can leave it only where the plate accelerates down (at
+    g, plus friction's share, on a sinusoidal plate: drive phase ``asin((1 + mu) /
+    Gamma)``), in the half-cycle ``0 < phi < pi`` of drive phase (zero at the upward
+    zero crossing of the plate's position): a harmonic, an armature or a drive reference
+    that lags the plate move it by a few tenths of a radian, not out of that half (the
+    virtual rig's armature puts it at 1.55 rad at Gamma 1.15-1.35). The takeoffs after
+    a contact of at least :data:`STUCK_CYCLES` cycles, at Gamma > 1 with a drive phase,
+    are such takeoffs if the polarity is right; with the levels swapped they are
+    landings, which at the Gammas where flights are shorter than contacts fall in the
+    other half-cycle (3.4-4.1 rad at Gamma 1.15-1.35).
+
+    Returns
+    -------
+    (the share in [0, 1], or NaN; the number of takeoffs from rest it is over)
+    """
+    phi = flights["phi_takeoff"].to_numpy(dtype=float)
+    gamma = flights["gamma"].to_numpy(dtype=float)
+    stuck = flights["contact_before_s"].to_numpy(dtype=float) >= STUCK_CYCLES / drive_freq_hz
+    m = stuck & np.isfinite(phi) & (gamma > 1.0)
+    if not m.any():
+        return float("nan"), 0
+    return float(np.mean(np.sin(phi[m]) > 0.0)), int(m.sum())
+
+
+def polarity_refuted(flights, other_flights, drive_freq_hz: float) -> bool:
+    """Whether the takeoff phases refute the polarity of ``flights`` and confirm that of
+    ``other_flights`` (the same channel read with the levels swapped); see
+    :func:`stuck_takeoff_share`. Both need :data:`MIN_STUCK_TAKEOFFS` takeoffs from rest.
+    """
+    here, n_here = stuck_takeoff_share(flights, drive_freq_hz)
+    there, n_there = stuck_takeoff_share(other_flights, drive_freq_hz)
+    enough = min(n_here, n_there) >= MIN_STUCK_TAKEOFFS
+    return bool(enough and here < REFUTED_SHARE and there > CONFIRMED_SHARE)
+
+
 def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Flight table and QC table of one run folder.
 
@@ -317,6 +364,17 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         flights = flights_from_detection(
             det, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id
         )
+        if run.contact_level == "auto" and run.kind == "sweep" and not rest and fits:
+            # no step rests the body, so the polarity came from the share of time each
+            # level is held, which is wrong where contacts outlast flights (Gamma 1-1.5):
+            # the drive's phases of the takeoffs from rest decide instead where they can
+            level = "low" if det.contact_high else "high"
+            other = detect_contacts(x, level, rest, opened, path=rec.path, sample_rate_hz=fs)
+            other_flights = flights_from_detection(
+                other, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id
+            )
+            if polarity_refuted(flights, other_flights, freq):
+                det, flights = other, other_flights
     qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None, freqs)
     return flights, qc
 

@@ -93,3 +93,22 @@ def test_a_drive_frequency_unlike_the_drive_channel_is_a_warning(make_run):
     measured = float(warning.split("runs at ")[1].split(" Hz")[0])
     assert measured == pytest.approx(DRIVE_HZ, abs=0.01)
     assert "+4.2 % from drive_frequency_hz 24" in warning
+
+
+def test_a_continuity_channel_with_no_contacts_is_a_warning(make_run):
+    """Noise alone on the continuity channel (a disconnected circuit): validate says what
+    extract would (no two levels), where before it said only 'ok'; a channel with
+    contacts gets no such warning. Found by a black-box probe of the contract."""
+    signals = known_signals()
+    signals["continuity"] = 2.5 + 0.02 * np.random.default_rng(3).standard_normal(
+        signals["continuity"].size
+    )
+    (warning,) = [
+        w
+        for w in validate_run(make_run("npz", name="silent", signals=signals)).warnings
+        if "no contacts" in w
+    ]
+    assert warning.startswith("continuity channel: no contacts found")
+    assert "extract and calibrate will fail" in warning
+    fine = validate_run(make_run("npz", name="fine"))
+    assert not any("no contacts" in w for w in fine.warnings)

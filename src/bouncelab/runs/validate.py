@@ -222,6 +222,10 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
             )
     if rec.channels["continuity"].size and np.ptp(rec.channels["continuity"]) == 0:
         out.append("continuity channel is constant: no contact edges to find")
+    elif run.kind == "drop" or (len(steps) and bool((steps["gamma"] >= 1.0).any())):
+        no_contacts = _no_contacts(rec)
+        if no_contacts:
+            out.append(f"continuity channel: {no_contacts}; extract and calibrate will fail")
     drive = rec.channels.get("drive")
     if run.kind == "sweep" and drive is not None and run.drive_frequency_hz and len(steps):
         from bouncelab.flights.extract import drive_frequencies
@@ -233,6 +237,21 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
         if warning:
             out.append(warning)
     return out
+
+
+def _no_contacts(rec: Recording) -> str | None:
+    """Why the continuity channel holds no contact to find, or None: the detection's own
+    test (:func:`bouncelab.flights.detect.detect_contacts`, a few tenths of a second on a
+    20-minute recording), so that validate says what extract would."""
+    from bouncelab.flights.detect import NoContactsError, detect_contacts
+
+    try:
+        detect_contacts(rec.channels["continuity"], sample_rate_hz=rec.fs)
+    except NoContactsError as exc:
+        return exc.problem
+    except BouncelabError:
+        return None  # another fault of the signal: extract names it
+    return None
 
 
 def validate_run(run_dir: str | Path) -> ValidationReport:

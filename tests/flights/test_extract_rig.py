@@ -140,3 +140,28 @@ def test_auto_polarity_where_contacts_outlast_flights(make_rig, tmp_path, contac
     assert acc["found_long"] >= 0.995 and acc["false"] <= 0.001
     contact = flights["contact_before_s"].to_numpy()[1:]
     assert np.median(contact) > np.median(flights["flight_s"])  # contacts do outlast flights
+
+
+def test_auto_polarity_unchecked_without_a_drive_is_a_warning(make_rig, tmp_path, caplog):
+    """The same low-Gamma sweep with no drive channel: nothing can check the share-of-time
+    rule there, and it reads the levels the wrong way round; extract says so and how to
+    mend it (set contact_level)."""
+    cfg = {
+        "kind": "sweep",
+        "seed": 5,
+        "body": {"restitution": 0.0},
+        "protocol": {"gammas": [1.15, 1.25, 1.35], "cycles_per_step": 120},
+        "sensors": {"drive": {"enabled": False}},
+    }
+    rig_dir, _ = make_rig("low_gamma_only_no_drive", cfg)
+    run_dir = tmp_path / "auto"
+    shutil.copytree(rig_dir, run_dir)
+    spec = yaml.safe_load((run_dir / "run.yaml").read_text())
+    (run_dir / "run.yaml").write_text(yaml.safe_dump(spec | {"contact_level": "auto"}))
+    with caplog.at_level("WARNING"):
+        extract_run(run_dir)
+    assert "set contact_level in run.yaml" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        extract_run(rig_dir)  # contact_level stated: no doubt, no warning
+    assert "contact_level" not in caplog.text

@@ -8,6 +8,7 @@ into flights, assigns each to its Gamma step by takeoff time and adds the drive 
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -266,6 +267,9 @@ MIN_STUCK_TAKEOFFS = 20
 #: Share of takeoffs from rest in the plate's falling half-cycle that refutes a polarity,
 #: and the share the other polarity must reach to replace it.
 REFUTED_SHARE, CONFIRMED_SHARE = 0.25, 0.75
+#: Share of the recording in contact at or above which the share-of-time polarity rule,
+#: unchecked, is warned about (a wrong reading at Gamma 1.2-1.3 holds 38-45 %).
+DOUBTFUL_CONTACT_SHARE = 0.35
 
 
 def stuck_takeoff_share(flights: pd.DataFrame, drive_freq_hz: float) -> tuple[float, int]:
@@ -376,6 +380,17 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             if polarity_refuted(flights, other_flights, freq):
                 det, flights = other, other_flights
     qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None, freqs)
+    if det is not None and run.contact_level == "auto" and run.kind == "sweep" and not rest:
+        share = float(det.n_contact.sum() / max(n, 1))
+        if not fits and share >= DOUBTFUL_CONTACT_SHARE:
+            logging.getLogger(__name__).warning(
+                "%s: contact level read as the level held less of the time (%.0f %%), with "
+                "no step below Gamma 1 to rest on and no drive channel to check it; where "
+                "contacts outlast flights (Gamma below about 1.5) that reading is the wrong "
+                "way round: set contact_level in run.yaml",
+                rec.path,
+                100 * share,
+            )
     return flights, qc
 
 

@@ -51,6 +51,8 @@ def detect_serial(x, contact_level="auto", rest=(), opened=(), block=D.BLOCK):
     t, kind, n_glitch, n_contact, first, glitch_at = K.detect_edges_serial(
         x, *args, d_prior, D.GLITCH_K
     )
+    if q == 0.0 and D.point_sampled(t):
+        t = t + 0.5  # instants, not interval means: each edge in the middle of its interval
     return dict(
         t_edge=t, kind=kind, first_state=first, contact_high=high, open_v=open_v,
         contact_v=contact_v, noise_v=sd, q=q, d_prior=d_prior, n_glitch=n_glitch,

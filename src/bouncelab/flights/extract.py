@@ -267,8 +267,9 @@ MIN_STUCK_TAKEOFFS = 20
 #: Share of takeoffs from rest in the plate's falling half-cycle that refutes a polarity,
 #: and the share the other polarity must reach to replace it.
 REFUTED_SHARE, CONFIRMED_SHARE = 0.25, 0.75
-#: Share of the recording in contact at or above which the share-of-time polarity rule,
-#: unchecked, is warned about (a wrong reading at Gamma 1.2-1.3 holds 38-45 %).
+#: Share of the recording in contact at or above which the share-of-time polarity rule
+#: is in doubt: checked by the drive's phases, or warned about without a drive channel
+#: (a wrong reading at Gamma 1.1-1.6 holds 38-47 %; a right one at Gamma >= 2 under 30 %).
 DOUBTFUL_CONTACT_SHARE = 0.35
 
 
@@ -308,6 +309,32 @@ def polarity_refuted(flights, other_flights, drive_freq_hz: float) -> bool:
     there, n_there = stuck_takeoff_share(other_flights, drive_freq_hz)
     enough = min(n_here, n_there) >= MIN_STUCK_TAKEOFFS
     return bool(enough and here < REFUTED_SHARE and there > CONFIRMED_SHARE)
+
+
+def _polarity_in_doubt(run, rest, det: Detection, n_samples: int) -> bool:
+    """Whether ``auto`` read the levels by the share of time alone (a sweep with no step
+    below Gamma 1 to rest on) and the contacts it read hold :data:`DOUBTFUL_CONTACT_SHARE`
+    of the recording or more, where that share cannot tell which level is contact. Below
+    it flights clearly dominate, the share is right, and nothing second-guesses it (a
+    drive channel wired inverted would otherwise turn a right reading round)."""
+    if run.contact_level != "auto" or run.kind != "sweep" or rest:
+        return False
+    return bool(det.n_contact.sum() / max(n_samples, 1) >= DOUBTFUL_CONTACT_SHARE)
+
+
+def _polarity_by_drive(run, det, flights, x, rest, opened, rec, steps, fits, offset):
+    """``(det, flights)`` read the other way round where the drive's phases of the
+    takeoffs from rest refute this reading and confirm that one
+    (:func:`polarity_refuted`), else as given."""
+    fs, freq = float(rec.fs), run.drive_frequency_hz
+    level = "low" if det.contact_high else "high"
+    other = detect_contacts(x, level, rest, opened, path=rec.path, sample_rate_hz=fs)
+    other_flights = flights_from_detection(
+        other, fs, steps, freq, run.settle_cycles, rec.time_s, fits, offset, run.run_id
+    )
+    if polarity_refuted(flights, other_flights, freq):
+        return other, other_flights
+    return det, flights
 
 
 def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -368,29 +395,21 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         flights = flights_from_detection(
             det, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id
         )
-        if run.contact_level == "auto" and run.kind == "sweep" and not rest and fits:
-            # no step rests the body, so the polarity came from the share of time each
-            # level is held, which is wrong where contacts outlast flights (Gamma 1-1.5):
-            # the drive's phases of the takeoffs from rest decide instead where they can
-            level = "low" if det.contact_high else "high"
-            other = detect_contacts(x, level, rest, opened, path=rec.path, sample_rate_hz=fs)
-            other_flights = flights_from_detection(
-                other, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id
-            )
-            if polarity_refuted(flights, other_flights, freq):
-                det, flights = other, other_flights
+        if _polarity_in_doubt(run, rest, det, n):
+            if fits:
+                det, flights = _polarity_by_drive(
+                    run, det, flights, x, rest, opened, rec, steps, fits, offset
+                )
+            else:
+                logging.getLogger(__name__).warning(
+                    "%s: contact level read as the level held less of the time (%.0f %%), "
+                    "with no step below Gamma 1 to rest on and no drive channel to check it; "
+                    "where contacts outlast flights (Gamma below about 1.5) that reading is "
+                    "the wrong way round: set contact_level in run.yaml",
+                    rec.path,
+                    100 * det.n_contact.sum() / max(n, 1),
+                )
     qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None, freqs)
-    if det is not None and run.contact_level == "auto" and run.kind == "sweep" and not rest:
-        share = float(det.n_contact.sum() / max(n, 1))
-        if not fits and share >= DOUBTFUL_CONTACT_SHARE:
-            logging.getLogger(__name__).warning(
-                "%s: contact level read as the level held less of the time (%.0f %%), with "
-                "no step below Gamma 1 to rest on and no drive channel to check it; where "
-                "contacts outlast flights (Gamma below about 1.5) that reading is the wrong "
-                "way round: set contact_level in run.yaml",
-                rec.path,
-                100 * share,
-            )
     return flights, qc
 
 

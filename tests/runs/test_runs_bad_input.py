@@ -341,6 +341,21 @@ def case_folder_missing(mk, tmp):
     return tmp / "raw" / "nope", "nope", "not found"
 
 
+def case_drive_phase_offset_text(mk, tmp):
+    """A documented extension key with a unit written in: extract failed with an internal
+    error that named no file (a black-box probe's case)."""
+    return mk("csv", yaml_overrides={"drive_phase_offset_rad": "0.6 rad"}), "run.yaml", "number"
+
+
+def case_drive_phase_offset_nan(mk, tmp):
+    """.nan: every phase came out NaN without a word."""
+    return mk("csv", yaml_overrides={"drive_phase_offset_rad": float("nan")}), "run.yaml", "finite"
+
+
+def case_gravity_not_positive(mk, tmp):
+    return mk("csv", kind="drop", yaml_overrides={"g_m_s2": 0.0}), "run.yaml", "positive"
+
+
 CASES = {name[5:]: fn for name, fn in dict(globals()).items() if name.startswith("case_")}
 
 

@@ -56,6 +56,11 @@ KNOWN_KEYS = frozenset(
     }
 )
 
+#: keys beyond the contract that bouncelab reads (kept in ``Run.extra``, checked here):
+#: the drive reference's lead over the plate (rad, docs/flights.md) and the local
+#: gravity of a drop test (m/s^2, docs/flights.md "Calibration")
+EXTENSION_KEYS = frozenset({"drive_phase_offset_rad", "g_m_s2"})
+
 
 @dataclass(frozen=True)
 class Run:
@@ -335,6 +340,22 @@ def check_gamma_steps(steps: list[dict[str, Any]], yaml_path: Path) -> list[tupl
     return out
 
 
+def check_extension_keys(data: dict[str, Any], yaml_path: Path) -> None:
+    """:data:`EXTENSION_KEYS` present in run.yaml must be finite numbers (``g_m_s2`` also
+    positive): a value such as ``"0.6 rad"`` or ``.nan`` would otherwise fail deep in the
+    extraction without naming run.yaml, or give NaN phases without a word."""
+    for key in sorted(EXTENSION_KEYS & set(data)):
+        value = data[key]
+        if value is None:
+            continue  # written but left empty: as if absent
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise BouncelabError(yaml_path, f"{key}: must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise BouncelabError(yaml_path, f"{key}: must be finite, got {value!r}")
+        if key == "g_m_s2" and value <= 0:
+            raise BouncelabError(yaml_path, f"{key}: must be positive, got {value!r}")
+
+
 def _finite(data: dict[str, Any], key: str, yaml_path: Path) -> float | None:
     """Optional float key; schema checked the type, this rejects .inf and .nan."""
     if key not in data:
@@ -385,6 +406,7 @@ def load_run(run_dir: str | Path) -> Run:
 
     for key in ("sample_rate_hz", "drive_frequency_hz", "full_scale_v", "mass_kg"):
         _finite(data, key, yaml_path)
+    check_extension_keys(data, yaml_path)
     recording_path = resolve_recording(run_dir, data["recording"], yaml_path)
     audio = recording_path.suffix.lower() in AUDIO_SUFFIXES
     channels = check_channels(data["channels"], audio, yaml_path)

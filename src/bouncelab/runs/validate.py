@@ -17,7 +17,7 @@ import pandas as pd
 
 from bouncelab.errors import BouncelabError
 from bouncelab.runs.readers import TIME_COLUMN, Recording, read_recording
-from bouncelab.runs.spec import ROLES, Run, load_run
+from bouncelab.runs.spec import EXTENSION_KEYS, ROLES, Run, load_run
 
 STEP_COLUMNS = ("step", "gamma", "t_start_s", "t_end_s", "n_cycles")
 GAP_FACTOR = 1.5
@@ -196,8 +196,9 @@ class ValidationReport:
 
 def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
     out = []
-    if run.extra:
-        out.append(f"unknown keys kept and ignored: {', '.join(map(str, run.extra))}")
+    unknown = [str(k) for k in run.extra if k not in EXTENSION_KEYS]
+    if unknown:
+        out.append(f"unknown keys kept and ignored: {', '.join(unknown)}")
     if run.extra_channels:
         out.append(f"unknown channel roles ignored: {', '.join(map(str, run.extra_channels))}")
     if not run.is_audio and run.full_scale_v != 1.0:

@@ -94,6 +94,7 @@ def flights_from_detection(
     phase_fits: dict | None = None,
     phase_offset_rad: float = 0.0,
     run_id: str = "",
+    phase_freq_hz: float | None = None,
 ) -> pd.DataFrame:
     """Flight table (CONTRACTS.md section 3 columns plus ``contact_before_s``).
 
@@ -109,6 +110,9 @@ def flights_from_detection(
     time_s : (n,) sample times or None (``index / fs``).
     phase_fits : step -> SineFit of the drive channel (None or missing: NaN phases).
     phase_offset_rad : how far the drive reference leads the plate, rad.
+    phase_freq_hz : the frequency (Hz) the phases advance at and ``phase_fits`` were
+        fitted at (:func:`phase_frequency`); None: ``drive_freq_hz``. ``T`` and
+        ``settled`` always take ``drive_freq_hz`` (CONTRACTS.md section 3).
     """
     ta_i, tl_i = det.flights()
     ok = ~gap_mask(ta_i, tl_i, fs, time_s)
@@ -145,11 +149,12 @@ def flights_from_detection(
     phi_t = np.full(flight.shape, np.nan)
     phi_l = np.full(flight.shape, np.nan)
     if phase_fits and drive_freq_hz:
+        f_phase = phase_freq_hz or drive_freq_hz
         for s, fit in phase_fits.items():
             m = step_ids == s
             if m.any():
-                phi_t[m] = phase_at(t_take[m], fit, drive_freq_hz, phase_offset_rad)
-                phi_l[m] = phase_at(t_land[m], fit, drive_freq_hz, phase_offset_rad)
+                phi_t[m] = phase_at(t_take[m], fit, f_phase, phase_offset_rad)
+                phi_l[m] = phase_at(t_land[m], fit, f_phase, phase_offset_rad)
     nan_g = gammas <= 0  # the plate is at rest: no phase
     phi_t[nan_g] = np.nan
     phi_l[nan_g] = np.nan
@@ -229,6 +234,33 @@ def _step_slice(t0, t1, fs, time_s, n):
     if time_s is None:
         return max(0, int(np.ceil(t0 * fs))), min(n, int(np.ceil(t1 * fs)))
     return int(np.searchsorted(time_s, t0)), int(np.searchsorted(time_s, t1))
+
+
+#: Relative difference between the drive channel's measured frequency (median over the
+#: steps) and run.yaml's beyond which the phases follow the measured one: 10 times the
+#: largest of the shipped runs' (2.3e-5), whose drives run at the stated frequency.
+PHASE_FREQUENCY_TOLERANCE = 2e-4
+
+
+def phase_frequency(freqs: dict, stated_hz: float) -> float:
+    """The frequency (Hz) the drive phases advance at: the drive channel's own, the
+    median of ``freqs`` (step -> Hz, :func:`drive_frequencies`), where it differs from
+    ``stated_hz`` by more than :data:`PHASE_FREQUENCY_TOLERANCE`; else ``stated_hz``.
+
+    Why: a sine fitted at the stated frequency gives each step one phase, right at its
+    middle and off by ``pi df t`` towards its ends. A second black-box probe's drive at
+    30.045 Hz stated as 30 Hz (0.15 %, under validate's 0.2 % warning) had phases a
+    median 0.14 rad off (0.28 at the 99th percentile), and 0.47 rad at 0.5 %; the
+    phases are of the plate, whose frequency the channel measures to 0.01 %.
+    """
+    measured = np.asarray(list(freqs.values()), dtype=np.float64)
+    measured = measured[np.isfinite(measured)]
+    if measured.size == 0 or not stated_hz:
+        return float(stated_hz)
+    median = float(np.median(measured))
+    if abs(median / stated_hz - 1.0) > PHASE_FREQUENCY_TOLERANCE:
+        return median
+    return float(stated_hz)
 
 
 def drive_fits(drive, steps, fs, freq_hz, time_s) -> dict:
@@ -322,21 +354,6 @@ def _polarity_in_doubt(run, rest, det: Detection, n_samples: int) -> bool:
     return bool(det.n_contact.sum() / max(n_samples, 1) >= DOUBTFUL_CONTACT_SHARE)
 
 
-def _polarity_by_drive(run, det, flights, x, rest, opened, rec, steps, fits, offset):
-    """``(det, flights)`` read the other way round where the drive's phases of the
-    takeoffs from rest refute this reading and confirm that one
-    (:func:`polarity_refuted`), else as given."""
-    fs, freq = float(rec.fs), run.drive_frequency_hz
-    level = "low" if det.contact_high else "high"
-    other = detect_contacts(x, level, rest, opened, path=rec.path, sample_rate_hz=fs)
-    other_flights = flights_from_detection(
-        other, fs, steps, freq, run.settle_cycles, rec.time_s, fits, offset, run.run_id
-    )
-    if polarity_refuted(flights, other_flights, freq):
-        return other, other_flights
-    return det, flights
-
-
 def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Flight table and QC table of one run folder.
 
@@ -380,10 +397,21 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         else:
             raise
     drive = rec.channels.get("drive")
-    fits, freqs = {}, {}
+    fits, freqs, phase_freq = {}, {}, freq
     if drive is not None and freq:
-        fits = drive_fits(drive, steps, fs, freq, time_s)
         freqs = drive_frequencies(drive, steps, fs, freq, time_s)
+        phase_freq = phase_frequency(freqs, freq)
+        if phase_freq != freq:
+            logging.getLogger(__name__).warning(
+                "%s: the drive channel runs at %.4f Hz, %+.2f %% from drive_frequency_hz "
+                "%g: the drive phases follow the channel; T and settle cycles use the "
+                "stated value",
+                rec.path,
+                phase_freq,
+                100 * (phase_freq / freq - 1.0),
+                freq,
+            )
+        fits = drive_fits(drive, steps, fs, phase_freq, time_s)
     offset = float(run.extra.get("drive_phase_offset_rad", 0.0) or 0.0)
     if det is None:
         flights = pd.DataFrame({c: [] for c in FLIGHT_COLUMNS})
@@ -392,14 +420,22 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             | {c: np.float64 for c in FLIGHT_COLUMNS if c not in ("run", "step", "settled")}
         )
     else:
-        flights = flights_from_detection(
-            det, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id
-        )
+
+        def flights_of(d: Detection) -> pd.DataFrame:
+            return flights_from_detection(
+                d, fs, steps, freq, run.settle_cycles, time_s, fits, offset, run.run_id, phase_freq
+            )
+
+        flights = flights_of(det)
         if _polarity_in_doubt(run, rest, det, n):
             if fits:
-                det, flights = _polarity_by_drive(
-                    run, det, flights, x, rest, opened, rec, steps, fits, offset
-                )
+                # read the other way round; kept where the drive's phases of the takeoffs
+                # from rest refute this reading and confirm that one
+                level = "low" if det.contact_high else "high"
+                other = detect_contacts(x, level, rest, opened, path=rec.path, sample_rate_hz=fs)
+                other_flights = flights_of(other)
+                if polarity_refuted(flights, other_flights, freq):
+                    det, flights = other, other_flights
             else:
                 logging.getLogger(__name__).warning(
                     "%s: contact level read as the level held less of the time (%.0f %%), "

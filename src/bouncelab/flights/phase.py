@@ -145,10 +145,11 @@ def drive_frequency_warning(
     """A warning when the drive channel's frequency, measured per step (``measured_hz``,
     NaN where the plate rests or there is no drive channel), disagrees with run.yaml's
     ``drive_frequency_hz`` by more than :data:`DRIVE_FREQUENCY_TOLERANCE` (the median
-    over the steps); None otherwise. Why: flight times in radians, the settle cycles and
-    every phase use the stated frequency, and a run.yaml copied from another run gives
-    a diagnosis of another experiment, without any error. ``path``: the file the
-    warning names first (none: the caller's context names it)."""
+    over the steps); None otherwise. Why: flight times in radians and the settle cycles
+    use the stated frequency (the phases the channel's: ``extract.phase_frequency``),
+    and a run.yaml copied from another run gives a diagnosis of another experiment,
+    without any error. ``path``: the file the warning names first (none: the caller's
+    context names it)."""
     measured = np.asarray(measured_hz, dtype=np.float64)
     measured = measured[np.isfinite(measured)]
     if measured.size == 0 or not stated_hz:
@@ -160,5 +161,6 @@ def drive_frequency_warning(
     return (f"{path}: " if path else "") + (
         f"the drive channel runs at {median:.3f} Hz (median over {measured.size} "
         f"steps), {100 * off:+.1f} % from drive_frequency_hz {float(stated_hz):g}; flight "
-        "times in radians and phases use the stated value"
+        "times in radians and the settle cycles use the stated value (the drive phases "
+        "follow the channel)"
     )

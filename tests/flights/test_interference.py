@@ -154,3 +154,38 @@ def test_extract_corrects_a_humming_run_and_reports_it_in_the_qc(tmp_path):
     assert len(read_table(out)) == len(c) - 1
     qc = read_table(tmp_path / "flights.qc.parquet")
     assert qc["interference_v"].to_numpy() == pytest.approx(np.full(2, np.std(h)), rel=0.1)
+
+
+@pytest.mark.parametrize("amp_rel", [0.05, 0.08])
+def test_hum_beside_a_slow_drift_of_the_levels(amp_rel):
+    """A hum of 5-8 % of the gap beside a slow drift of 30 % of it (a warming circuit,
+    the levels moving 1.5 V over 36 s on a 5 V gap; a second black-box probe's case).
+    The drift put the residuals from the global levels beyond a quarter of the gap and
+    the RC decay ratios near 1 (the guard after each crossing 618 samples): the hum went
+    unestimated in half the steps and 72-125 of 899 flights were lost. Reference: the
+    same contacts with the drift and no hum; found within 0.5 %, median error within
+    2 us."""
+    fs, seconds = 20_000.0, 36.0
+    c = long_contacts_with_chatter(seconds)
+    kw = dict(fs=fs, tau_s=25e-6, open_v=GAP_V, contact_v=0.0, noise_v=0.02, seed=3)
+    x0, _ = continuity(c, seconds, **kw)
+    t = np.arange(x0.shape[0]) / fs
+    x0 = x0 + 0.3 * GAP_V * np.sin(2 * np.pi * t / seconds)
+    x = x0 + hum(x0.shape[0], fs, amp_rel * GAP_V)
+    err0, found0, _, _ = match(detect_contacts(x0, sample_rate_hz=fs), c, fs=fs)
+    err, found, n_det, n_true = match(detect_contacts(x, sample_rate_hz=fs), c, fs=fs)
+    print(f"hum {amp_rel}: found {found:.4f} ({found0:.4f} without hum), {n_det}/{n_true}")
+    assert found >= found0 - 0.005
+    assert n_det <= n_true * 1.005  # no fragments
+    assert np.median(err) < np.median(err0) + 2e-6
+
+
+def long_contacts_with_chatter(seconds, seed=6):
+    """One contact of 3-12 ms a cycle of 1/25 s (a body riding a 25 Hz plate)."""
+    rng = np.random.default_rng(seed)
+    out, t = [], 0.01
+    while t < seconds - 0.06:
+        d = rng.uniform(3e-3, 12e-3)
+        out.append((t, t + d))
+        t += 0.04
+    return out

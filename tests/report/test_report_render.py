@@ -279,3 +279,25 @@ def test_a_run_the_config_leaves_undiagnosed_is_said_so_not_shown_stale(tmp_path
     # no reason and no readable file: the note names the file and its log
     (note,) = diagnosis_blocks(tmp_path, "a", tmp_path)
     assert "runs/a/diagnosis.json" in note["text"] and "logs/diagnose/a.log" in note["text"]
+
+
+def test_a_candidate_at_its_null_value_is_said_so(tmp_path):
+    """A round-1 candidate whose search ended worse than the baseline is reported at its
+    null value (``at_null``); the table says why its parameter reads 0, and a fitted one
+    reads as before (reference: the JSON as written)."""
+    import json
+
+    from bouncelab.report.content import diagnosis_blocks
+
+    run = tmp_path / "runs" / "r"
+    run.mkdir(parents=True)
+    cands = [
+        {"effect": "friction", "params": {"mu": 0.12}, "gap": 0.2, "shrink": 0.4},
+        {"effect": "restitution", "params": {"e": 0.0}, "gap": 0.3, "shrink": 0.0, "at_null": True},
+    ]  # fmt: skip
+    (run / "diagnosis.json").write_text(json.dumps(_explained_diagnosis(candidates=cands)))
+    blocks = diagnosis_blocks(tmp_path, "r", tmp_path / "captions.yaml")
+    (table,) = [b for b in blocks if "candidate" in b.get("caption", "")]
+    fitted, null = (row[1] for row in table["rows"])
+    assert "switched off" in null and "e = 0" in null
+    assert "switched off" not in fitted

@@ -400,7 +400,17 @@ def diagnosis_blocks(results: Path, run: str, captions: Path, no_diagnosis: str 
             }
         )
     cand = [
-        [c["effect"], _params_text(c.get("params", {})), fmt(c["gap"]), fmt(c["shrink"])]
+        [
+            c["effect"],
+            _params_text(c.get("params", {}))
+            + (
+                "; its search ended worse than the baseline: shown switched off"
+                if c.get("at_null")
+                else ""
+            ),
+            fmt(c["gap"]),
+            fmt(c["shrink"]),
+        ]
         for c in diag.get("candidates", [])
     ]
     if cand:

@@ -343,6 +343,11 @@ def polarity_refuted(flights, other_flights, drive_freq_hz: float) -> bool:
     return bool(enough and here < REFUTED_SHARE and there > CONFIRMED_SHARE)
 
 
+def contact_share(det: Detection, n_samples: int) -> float:
+    """Share of the recording's samples that the detection reads as contact, in [0, 1]."""
+    return float(det.n_contact.sum() / max(n_samples, 1))
+
+
 def _polarity_in_doubt(run, rest, det: Detection, n_samples: int) -> bool:
     """Whether ``auto`` read the levels by the share of time alone (a sweep with no step
     below Gamma 1 to rest on) and the contacts it read hold :data:`DOUBTFUL_CONTACT_SHARE`
@@ -351,7 +356,7 @@ def _polarity_in_doubt(run, rest, det: Detection, n_samples: int) -> bool:
     drive channel wired inverted would otherwise turn a right reading round)."""
     if run.contact_level != "auto" or run.kind != "sweep" or rest:
         return False
-    return bool(det.n_contact.sum() / max(n_samples, 1) >= DOUBTFUL_CONTACT_SHARE)
+    return contact_share(det, n_samples) >= DOUBTFUL_CONTACT_SHARE
 
 
 def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -443,7 +448,7 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
                     "where contacts outlast flights (Gamma below about 1.5) that reading is "
                     "the wrong way round: set contact_level in run.yaml",
                     rec.path,
-                    100 * det.n_contact.sum() / max(n, 1),
+                    100 * contact_share(det, n),
                 )
     qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None, freqs)
     return flights, qc

@@ -452,6 +452,13 @@ def _edge_piece(x, a, e, params):
     return state, u_g, kernels.edge_range(x, a, e, state, u_g, *params)
 
 
+def _high_share(x: np.ndarray) -> float:
+    """Share of ``x``'s (strided) samples above the mid level of its two means."""
+    s = _subsample(x)
+    lo, hi, _ = two_means(s)
+    return float(np.mean(s > 0.5 * (lo + hi)))
+
+
 def _subsample(x: np.ndarray, max_points: int = 500_000) -> np.ndarray:
     """``x[::step]`` in float64 with ``step = max(1, n // max_points)``: the points that
     :func:`two_means` and :func:`_robust_noise` use (they pick the same ones from it)."""
@@ -515,7 +522,14 @@ def _detect_split(
     cut = refine_cut(x, cut, block)
     if not block <= cut <= x.shape[0] - block:
         return det  # at an end: nothing to split off
-    level = "high" if det.contact_high else "low"
+    high = det.contact_high
+    if contact_level == "auto" and not len(rest_intervals) and not len(open_intervals):
+        # rule (3) read on the whole mixes the sides' levels (a gain drop to near the old
+        # mid level reads the new open level as contact): read it on each side instead
+        high = _high_share(x[:cut]) * cut + _high_share(x[cut:]) * (x.shape[0] - cut) < (
+            0.5 * x.shape[0]
+        )
+    level = "high" if high else "low"
     parts = []
     for a, b in ((0, cut), (cut, x.shape[0])):
         try:
@@ -523,7 +537,7 @@ def _detect_split(
         except NoContactsError:
             side = None  # e.g. a side where the body rests all along
         parts.append((a, side))
-    return det if all(d is None for _, d in parts) else _joined(parts, det, block)
+    return det if all(d is None for _, d in parts) else _joined(parts, det, block, high)
 
 
 def level_jump(x: np.ndarray, det: Detection) -> int | None:
@@ -595,14 +609,31 @@ def _level_step(level: np.ndarray, k: int = 3) -> np.ndarray:
     return np.abs(med[k : k + level.shape[0] - 1] - med[: level.shape[0] - 1])
 
 
-def refine_cut(x: np.ndarray, cut: int, block: int) -> int:
+def refine_cut(x: np.ndarray, cut: int, block: int, passes: int = 3) -> int:
     """The sample where the levels jump, near a block boundary ``cut`` of :func:`level_jump`.
 
     The levels on each side come from a two-means split of the samples 1-4 blocks away
     from ``cut``; within two blocks of it, the jump is the index that best separates the
-    samples that fit only the left side's levels (within a quarter of its gap) from those
-    that fit only the right side's.  ``cut`` itself when a side shows no two levels.
+    samples that fit only the left side's levels (within a quarter of its gap, and clearly
+    nearer to them than to the right side's) from those that fit only the right side's.
+    ``cut`` itself when a side shows no two levels.
+
+    :func:`level_jump` may place ``cut`` up to two blocks before the jump, so the first
+    right-side window can still hold the old levels (its two means then read the old and
+    the new open level, and a gain drop to near the old mid level put the cut 50 ms
+    early, losing every flight after it): the levels are read again around each refined
+    cut, for at most ``passes`` passes, until the cut stays put.
     """
+    for _ in range(passes):
+        new = _refine_cut_once(x, cut, block)
+        if new == cut:
+            break
+        cut = new
+    return cut
+
+
+def _refine_cut_once(x: np.ndarray, cut: int, block: int) -> int:
+    """One pass of :func:`refine_cut`: levels read 1-4 blocks either side of ``cut``."""
     n = x.shape[0]
     left = np.asarray(x[max(0, cut - 4 * block) : max(0, cut - block)], dtype=np.float64)
     right = np.asarray(x[min(n, cut + block) : min(n, cut + 4 * block)], dtype=np.float64)
@@ -615,12 +646,18 @@ def refine_cut(x: np.ndarray, cut: int, block: int) -> int:
     a, b = max(0, cut - 2 * block), min(n, cut + 2 * block)
     w = np.asarray(x[a:b], dtype=np.float64)
 
-    def fits(levels):
-        tol = 0.25 * (levels[1] - levels[0])
-        return (np.abs(w - levels[0]) < tol) | (np.abs(w - levels[1]) < tol)
+    def distance(levels):
+        return np.minimum(np.abs(w - levels[0]), np.abs(w - levels[1]))
 
-    only_l, only_r = fits(lv), fits(rv)
-    only_l, only_r = only_l & ~only_r, only_r & ~only_l
+    # a sample is one side's when it lies within a quarter of that side's gap of one of
+    # its levels and clearly nearer to it than to either of the other side's (a shift of
+    # both levels by less than half the gap leaves every sample within a quarter gap of
+    # both sides' levels); a level the jump left in place (or moved by less than a tenth
+    # of the gap: the tracking follows such a step) fits both, and counts for neither
+    dl, dr = distance(lv), distance(rv)
+    clear = max(3.0 * noise, 0.1 * min(lv[1] - lv[0], rv[1] - rv[0]))
+    only_l = (dl < 0.25 * (lv[1] - lv[0])) & (dr - dl > clear)
+    only_r = (dr < 0.25 * (rv[1] - rv[0])) & (dl - dr > clear)
     # misfits when cutting before sample i: right-only samples before i, left-only after
     cost = np.concatenate(([0], np.cumsum(only_r))) + (
         only_l.sum() - np.concatenate(([0], np.cumsum(only_l)))
@@ -628,11 +665,12 @@ def refine_cut(x: np.ndarray, cut: int, block: int) -> int:
     return a + int(np.argmin(cost))
 
 
-def _joined(parts, whole: Detection, block: int) -> Detection:
+def _joined(parts, whole: Detection, block: int, contact_high: bool) -> Detection:
     """One :class:`Detection` from the detections of consecutive pieces
     ``[(start, det or None), ...]`` (None: no contacts there).  Per-block arrays are
     read on the whole recording's block grid, each block from the piece holding its
-    centre (``whole``'s own where that piece has none)."""
+    centre (``whole``'s own where that piece has none); ``contact_high`` is the polarity
+    the pieces were detected with."""
     nb = whole.open_v.shape[0]
     centre = (np.arange(nb) + 0.5) * block
     starts = np.array([a for a, _ in parts])
@@ -659,7 +697,7 @@ def _joined(parts, whole: Detection, block: int) -> Detection:
         t_edge=t_all[keep],
         kind=kind_all[keep],
         first_state=parts[0][1].first_state if parts[0][1] is not None else whole.first_state,
-        contact_high=whole.contact_high,
+        contact_high=contact_high,
         q=main.q,
         d_prior=main.d_prior,
         glitch_at=np.concatenate([d.glitch_at + a for a, d in found])[:4096],

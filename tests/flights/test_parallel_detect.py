@@ -38,10 +38,13 @@ def detect_serial(x, contact_level="auto", rest=(), opened=(), block=D.BLOCK):
     gap = contact_v - open_v
     sd = np.where(np.isfinite(sd_b), sd_b, np.nanmedian(sd_b) if np.isfinite(sd_b).any() else 0)
     inv = 1.0 / gap
-    r = K.rc_ratios_serial(x[: D.PRIOR_SAMPLES], block, open_v, inv, 200_000)
-    if r.size < 200 and x.shape[0] > D.PRIOR_SAMPLES:
-        r = K.rc_ratios_serial(x, block, open_v, inv, 200_000)
-    r = r[np.isfinite(r)]
+    for slow in (False, True):  # the slow front end's rule only where none is clean
+        r = K.rc_ratios_serial(x[: D.PRIOR_SAMPLES], block, open_v, inv, 200_000, slow)
+        if r.size < 200 and x.shape[0] > D.PRIOR_SAMPLES:
+            r = K.rc_ratios_serial(x, block, open_v, inv, 200_000, slow)
+        r = r[np.isfinite(r)]
+        if r.size >= 8:
+            break
     q = float(np.median(r)) if r.size >= 8 else 0.0
     q = 0.0 if q < K.Q_MIN else min(q, 0.9)
     sdz = sd / np.abs(gap) * np.sqrt(1.0 + q * q) / (1.0 - q)
@@ -175,17 +178,20 @@ def test_block_levels_runs(signals):
                 assert np.array_equal(a, b, equal_nan=True)
 
 
-def test_rc_ratios_pieces(signals):
+@pytest.mark.parametrize("slow", [False, True])
+def test_rc_ratios_pieces(signals, slow):
     """RC ratios scanned in pieces, concatenated and cut: the serial kernel's list,
-    with and without the cut to max_out taking effect."""
+    with and without the cut to max_out taking effect, with either rule."""
     x, _, _ = signals[25e-6]
     det = detect_contacts(x)
     gap = det.contact_v - det.open_v
     for max_out in (200_000, 50):
-        ref = K.rc_ratios_serial(x, det.block, det.open_v, 1.0 / gap, max_out)
+        ref = K.rc_ratios_serial(x, det.block, det.open_v, 1.0 / gap, max_out, slow)
         assert ref.size >= 50
         with D.Parallel(2, 3001) as par:
-            got = par.rc_ratios(x, 0, x.shape[0], det.block, det.open_v, 1.0 / gap, max_out)
+            got = par.rc_ratios(
+                x, 0, x.shape[0], det.block, det.open_v, 1.0 / gap, max_out, slow
+            )
         assert np.array_equal(got, ref)
 
 

@@ -296,19 +296,28 @@ def estimate_q(x, block, open_b, gap_b, max_ratios: int = 200_000, par=None) -> 
     ``par``: a :class:`Parallel` to scan pieces at once (the ratios, concatenated in
     order, are the serial kernel's)."""
     par = par or Parallel(1)
-    # a prefix usually holds enough clean edges; the whole recording only if it does not
-    inv = 1.0 / gap_b
-    n = x.shape[0]
-    head = min(n, PRIOR_SAMPLES)
-    r = par.rc_ratios(x, 0, head, block, open_b, inv, max_ratios)
-    if r.size < 200 and n > PRIOR_SAMPLES:
-        rest = par.rc_ratios(x, PRIOR_SAMPLES, n, block, open_b, inv, max_ratios)
-        r = np.concatenate([r, rest])[:max_ratios]
-    r = r[np.isfinite(r)]
+    r = _rc_ratios(x, block, open_b, 1.0 / gap_b, max_ratios, par, slow=False)
+    if r.size < 8:
+        # no edge settles within 0.1 of its level two samples on: a front end slower
+        # than the sampling (tau over about 1.5 samples), read where the decay holds
+        # one ratio; before, q came out 0 and the box model read every RC tail as edges
+        r = _rc_ratios(x, block, open_b, 1.0 / gap_b, max_ratios, par, slow=True)
     if r.size < 8:
         return 0.0
     q = float(np.median(r))
     return 0.0 if q < kernels.Q_MIN else min(q, 0.9)
+
+
+def _rc_ratios(x, block, open_b, inv, max_ratios, par, slow) -> np.ndarray:
+    """Finite RC ratios of :func:`kernels.rc_range`: a prefix usually holds enough clean
+    edges, the whole recording is read only if it does not."""
+    n = x.shape[0]
+    head = min(n, PRIOR_SAMPLES)
+    r = par.rc_ratios(x, 0, head, block, open_b, inv, max_ratios, slow)
+    if r.size < 200 and n > PRIOR_SAMPLES:
+        rest = par.rc_ratios(x, PRIOR_SAMPLES, n, block, open_b, inv, max_ratios, slow)
+        r = np.concatenate([r, rest])[:max_ratios]
+    return r[np.isfinite(r)]
 
 
 def _short_contact_prior(t_edge, kind, max_len=1.0) -> float:
@@ -381,10 +390,10 @@ class Parallel:
         extra = [c for c in cuts if lo < c < hi]
         return np.unique(np.concatenate([b, np.asarray(extra, dtype=b.dtype)]))
 
-    def rc_ratios(self, x, k_lo, k_hi, block, open_b, inv_b, max_out) -> np.ndarray:
+    def rc_ratios(self, x, k_lo, k_hi, block, open_b, inv_b, max_out, slow=False) -> np.ndarray:
         """:func:`kernels.rc_range` over ``[k_lo, k_hi)`` in pieces: the serial ratios."""
         pieces = _pairs(self.bounds(k_lo, k_hi))
-        args = [(x, a, e, block, open_b, inv_b, max_out) for a, e in pieces]
+        args = [(x, a, e, block, open_b, inv_b, max_out, slow) for a, e in pieces]
         parts = self.map(kernels.rc_range, args)
         return np.concatenate(parts)[:max_out] if parts else np.empty(0)
 

@@ -147,7 +147,7 @@ def _segment(k, block, centers_open, centers_inv):
 
 
 @njit(cache=True)
-def rc_ratios_serial(x, block, open_b, inv_b, max_out):
+def rc_ratios_serial(x, block, open_b, inv_b, max_out, slow=False):
     """Decay ratios right after clean edges, to estimate the RC constant q = exp(-1/tau).
 
     After a takeoff inside ``(k-1, k]`` the filtered signal only decays, so
@@ -155,7 +155,9 @@ def rc_ratios_serial(x, block, open_b, inv_b, max_out):
     taken only at clean, held edges: two samples at the old level (within 0.1 of the
     gap), the first sample after the edge between 0.3 and 0.95 of the way (0.05-0.7
     for landings), the next moving on, and the one after that within 0.1 of the new
-    level (so a chatter impact or a one-sample contact does not spoil the ratio).
+    level (so a chatter impact or a one-sample contact does not spoil the ratio); with
+    ``slow``, also one still decaying at the same ratio (:func:`_settles`: a front end
+    slower than the sampling, whose third sample is never that close).
     Returns up to ``max_out`` ratios.
     """
     n = x.shape[0]
@@ -175,16 +177,38 @@ def rc_ratios_serial(x, block, open_b, inv_b, max_out):
         if k < 4:
             continue
         # takeoff after a held contact, then two samples that settle towards open
-        if u[0] > 0.9 and u[1] > 0.9 and 0.3 < u[2] < 0.95 and u[3] < u[2] and u[4] < 0.1:
+        if u[0] > 0.9 and u[1] > 0.9 and 0.3 < u[2] < 0.95 and u[3] < u[2] and _settles(
+            u[2], u[3], u[4], slow
+        ):
             if m < max_out:
                 out[m] = u[3] / u[2]
                 m += 1
         # landing after a held opening, then two samples that settle towards contact
-        elif u[0] < 0.1 and u[1] < 0.1 and 0.05 < u[2] < 0.7 and u[3] > u[2] and u[4] > 0.9:
+        elif (
+            u[0] < 0.1
+            and u[1] < 0.1
+            and 0.05 < u[2] < 0.7
+            and u[3] > u[2]
+            and _settles(1.0 - u[2], 1.0 - u[3], 1.0 - u[4], slow)
+        ):
             if m < max_out:
                 out[m] = (1.0 - u[3]) / (1.0 - u[2])
                 m += 1
     return out[:m]
+
+
+@njit(cache=True, inline="always")
+def _settles(a2, a3, a4, slow):
+    """Whether the distances ``a2 > a3``, ``a4`` to the new level (fractions of the gap)
+    of the three samples after an edge settle as one RC decay: ``a4`` within 0.1 of the
+    level, or, with ``slow`` (a front end slower than the sampling, tau over about 1.5
+    samples, whose third sample is never that close), still falling at the ratio
+    ``a3 / a2`` to within 0.1; a chatter impact or one-sample contact turns the signal
+    back instead.  Only a fallback: an offset of the levels (an uncorrected hum) also
+    decays "at one ratio", near 1."""
+    if a4 < 0.1:
+        return True
+    return slow and a4 < a3 and abs(a4 * a2 - a3 * a3) < 0.1 * a2 * a3
 
 
 Q_MIN = 1e-4  # below this the RC leaves no trace in the next sample: box model
@@ -896,7 +920,7 @@ def levels_walk(x, block, lo0, hi0, min_count, rec):
 
 
 @njit(cache=True, nogil=True)
-def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out):
+def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out, slow=False):
     """The windows ``k_lo <= k < k_hi`` of :func:`rc_ratios_serial`: the same tests,
     the same ratios in the same order, at most ``max_out``.
 
@@ -924,11 +948,17 @@ def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out):
         # the serial kernel's two tests; both need 0.05 < u2 < 0.95, which almost every
         # window (samples at a level) fails at once
         if 0.05 < u2 < 0.95:
-            if u0 > 0.9 and u1 > 0.9 and 0.3 < u2 < 0.95 and u3 < u2 and u4 < 0.1:
+            if u0 > 0.9 and u1 > 0.9 and 0.3 < u2 < 0.95 and u3 < u2 and _settles(u2, u3, u4, slow):
                 if m < max_out:
                     out[m] = u3 / u2
                     m += 1
-            elif u0 < 0.1 and u1 < 0.1 and 0.05 < u2 < 0.7 and u3 > u2 and u4 > 0.9:
+            elif (
+                u0 < 0.1
+                and u1 < 0.1
+                and 0.05 < u2 < 0.7
+                and u3 > u2
+                and _settles(1.0 - u2, 1.0 - u3, 1.0 - u4, slow)
+            ):
                 if m < max_out:
                     out[m] = (1.0 - u3) / (1.0 - u2)
                     m += 1

@@ -49,6 +49,18 @@ def test_recovers_rig_truth(make_rig, mu, e):
     assert cal["restitution_ci"][0] <= cal["restitution"] <= cal["restitution_ci"][1]
 
 
+def test_a_front_end_slower_than_the_sampling(make_rig):
+    """The same drop through a 250 us RC front end (5 samples at 20 kHz): its q came
+    out 0, the RC tails read as edges, and calibrate failed with "only 0 bounce(s)".
+    Reference: the rig's truth, with the tolerance of test_recovers_rig_truth."""
+    cfg = drop_cfg(0.2, 0.55)
+    cfg["sensors"] = {"continuity": {"rc_time_s": 250e-6}}
+    run_dir, _ = make_rig("drop_slow_rc", cfg)
+    cal = calibrate_run(run_dir, n_boot=100, seed=0)
+    assert cal["mu"] == pytest.approx(0.2, abs=0.02)
+    assert cal["restitution"] == pytest.approx(0.55, abs=0.02)
+
+
 def test_cli_json_and_determinism(make_rig, tmp_path):
     run_dir, _ = make_rig("drop_0.29_0.515", drop_cfg(0.29, 0.515))
     outs = []

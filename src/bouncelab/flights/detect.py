@@ -47,7 +47,7 @@ in the rare case they differ.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
@@ -512,9 +512,35 @@ def detect_contacts(
     if x.shape[0] < 3:
         raise BouncelabError(path, "continuity channel has fewer than 3 samples")
     with Parallel(n_threads, piece) as par:
-        return _detect_split(
+        det = _detect_split(
             x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz
         )
+    return _in_order(det)
+
+
+def _in_order(det: Detection) -> Detection:
+    """``det`` with every flight or contact of no positive length removed, so the edge
+    times rise strictly: its two edges go, and the contacts (flights) around it merge.
+
+    Each edge of a one-interval pulse is placed from that interval's sample alone, so on
+    a front end that rings (a sound card's linear-phase anti-alias filter behind an
+    AC coupling) a chatter burst could give a landing 14 us before its takeoff: a
+    flight of negative length in the table.  The same object when all is in order."""
+    t, kind = det.t_edge, det.kind
+    if t.shape[0] < 2 or bool(np.all(np.diff(t) > 0)):
+        return det
+    keep = np.ones(t.shape[0], dtype=bool)
+    while True:
+        idx = np.flatnonzero(keep)
+        bad = np.flatnonzero(np.diff(t[idx]) <= 0)
+        if bad.size == 0:
+            break
+        # one pair at a time from the left of each run: removing (i, i+1) may put i-1
+        # and i+2 out of order, which the next round sees
+        first = bad[np.concatenate(([True], np.diff(bad) > 1))]
+        keep[idx[first]] = False
+        keep[idx[first + 1]] = False
+    return replace(det, t_edge=t[keep], kind=kind[keep])
 
 
 def _detect_split(

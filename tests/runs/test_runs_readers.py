@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from runs_fixtures import DURATION_S, FORMATS, FS, STEPS, known_signals
 
 from bouncelab.errors import BouncelabError
-from bouncelab.runs import ROLES, Run, load_run, read_recording, step_table
+from bouncelab.runs import ROLES, Run, load_run, read_recording, step_table, validate_run
 
 LSB16 = 1.0 / 32768
 
@@ -76,6 +76,10 @@ def test_time_column_round_trip(make_run, fmt):
     assert rec.t_start_s == 100.0
     assert rec.duration_s == pytest.approx(100.0 + DURATION_S, rel=1e-12)
     assert rec.times is rec.time_s
+    # validate's JSON: the length as duration_s (it said 100 s too long), the end apart
+    doc = validate_run(run_dir).to_dict()
+    assert doc["duration_s"] == pytest.approx(DURATION_S, rel=1e-9)
+    assert doc["t_end_s"] == pytest.approx(100.0 + DURATION_S, rel=1e-12)
     assert "time_s" not in rec.channels
 
 

@@ -9,7 +9,7 @@ import pytest
 from runs_fixtures import DRIVE_HZ, DURATION_S, FORMATS, FS, STEPS, known_signals, tree_digest
 
 from bouncelab.cli import main
-from bouncelab.runs import validate_run
+from bouncelab.runs import load_run, read_recording, step_table, validate_run
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
@@ -59,6 +59,20 @@ def test_steps_too_short_to_settle_are_a_warning(make_run):
     assert any("3 step(s) no longer than settle_cycles" in w for w in report.warnings)
 
 
+def test_steps_past_the_end_are_left_out_with_a_warning(make_run):
+    """A protocol the lab stopped early: the steps that start at or after the end (4 s)
+    hold no data and are left out with a warning, the others keep their indices and the
+    last one runs to the end. Before, the whole run was refused. Every step past the end
+    is still an error (test_runs_bad_input.py, steps_after_end)."""
+    steps = [{"t_s": 0.0, "gamma": 1.0}, {"t_s": 4.0, "gamma": 2.0}, {"t_s": 6.0, "gamma": 3}]
+    run_dir = make_run("flac", yaml_overrides={"gamma_steps": steps})
+    report = validate_run(run_dir)
+    (w,) = [w for w in report.warnings if "after the end" in w]
+    assert w.startswith("2 gamma step(s)") and "gamma_steps[1] at 4 s" in w
+    table = step_table(load_run(run_dir), read_recording(run_dir).duration_s)
+    assert table["step"].tolist() == [0] and table["t_end_s"].tolist() == [DURATION_S]
+
+
 def test_validate_drop_run(make_run, capsys):
     run_dir = make_run("tdms", kind="drop")
     assert main(["validate", str(run_dir)]) == 0
@@ -75,7 +89,8 @@ def test_validate_warns_about_ignored_things(make_run):
 
 
 def test_time_column_spacing_mismatch_is_a_warning(make_run):
-    t = np.arange(int(FS * DURATION_S)) / (2 * FS)  # spacing says 4 kHz, run.yaml says 2 kHz
+    # spacing says 2.2 kHz, run.yaml says 2 kHz (twice off is an error: bad input cases)
+    t = np.arange(int(FS * DURATION_S)) / (1.1 * FS)
     steps = [{"t_s": 0.0, "gamma": 1.0}]
     report = validate_run(make_run("csv", time_s=t, yaml_overrides={"gamma_steps": steps}))
     assert any("time_s spacing" in w for w in report.warnings)

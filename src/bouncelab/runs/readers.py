@@ -578,12 +578,19 @@ def _unround_time(rec: Recording) -> Recording:
     return replace(rec, time_s=regular)
 
 
+#: Largest relative difference between ``time_s``'s median spacing and ``1 /
+#: sample_rate_hz`` that is read (with validate's warning above 1 %); beyond it, an error.
+TIME_SPACING_TOL = 0.4
+
+
 def check_samples(run: Run, rec: Recording) -> None:
     """Data checks shared by every format; raises BouncelabError.
 
-    Empty recording, NaN or infinite samples, ``time_s`` not finite or not strictly
-    increasing (named against the recording); Gamma steps or the release time at or
-    after the recording's end (named against run.yaml, which holds the times).
+    Empty recording, NaN or infinite samples, ``time_s`` not finite, not strictly
+    increasing or spaced more than 40 % off ``1 / sample_rate_hz`` (named against the
+    recording); every Gamma step, or the release time,
+    at or after the recording's end (named against run.yaml, which holds the times; some
+    steps past the end are a protocol the lab stopped early, left out with a warning).
     """
     path = rec.path
     if rec.n_samples == 0:
@@ -608,14 +615,24 @@ def check_samples(run: Run, rec: Recording) -> None:
                 path,
                 f"time_s is not strictly increasing: {t[i]:.9g} at index {i} after {t[i - 1]:.9g}",
             )
+        if t.shape[0] > 1:
+            # a jump of the time axis over 1.5 sample periods is a data gap, so a spacing
+            # this far off 1/fs would read every sample as a gap and keep no flight
+            dt = float(np.median(np.diff(t)))
+            if abs(dt * run.sample_rate_hz - 1.0) > TIME_SPACING_TOL:
+                raise BouncelabError(
+                    path,
+                    f"time_s spacing {dt:.6g} s (median) is {dt * run.sample_rate_hz:.3g} "
+                    f"sample periods of sample_rate_hz {run.sample_rate_hz:g}: the column "
+                    "and run.yaml disagree about the sampling rate",
+                )
     end = rec.duration_s
-    for i, (t_s, _gamma) in enumerate(run.gamma_steps):
-        if t_s >= end:
-            raise BouncelabError(
-                run.yaml_path,
-                f"gamma_steps[{i}] starts at {t_s:g} s, at or after the end of "
-                f"{path.name} ({end:g} s)",
-            )
+    if run.kind == "sweep" and run.gamma_steps and run.gamma_steps[0][0] >= end:
+        raise BouncelabError(
+            run.yaml_path,
+            f"every gamma step starts at or after the end of {path.name} ({end:g} s): "
+            f"gamma_steps[0] at {run.gamma_steps[0][0]:g} s",
+        )
     if run.release_t_s is not None and not rec.t_start_s <= run.release_t_s < end:
         raise BouncelabError(
             run.yaml_path,

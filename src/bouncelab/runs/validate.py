@@ -42,18 +42,12 @@ def step_table(run: Run, duration_s: float) -> pd.DataFrame:
         cycles in the step; NaN without a drive frequency). Empty (same columns)
         for runs without steps, e.g. drops.
     """
-    steps = run.gamma_steps
+    # a step planned past the recording's end (the lab stopped early) holds no data: it is
+    # left out (steps_after_end names it in warnings), the others keep their indices
+    steps = run.gamma_steps[: len(steps_inside(run, duration_s))]
     t_start = np.array([t for t, _ in steps], dtype=np.float64)
     gamma = np.array([g for _, g in steps], dtype=np.float64)
     t_end = np.append(t_start[1:], float(duration_s)) if steps else np.empty(0)
-    late = np.flatnonzero(t_end <= t_start)
-    if late.size:
-        i = int(late[0])
-        raise BouncelabError(
-            run.yaml_path,
-            f"gamma_steps[{i}] starts at {t_start[i]:g} s, at or after the end of the "
-            f"recording ({duration_s:g} s)",
-        )
     f = run.drive_frequency_hz if run.drive_frequency_hz is not None else math.nan
     return pd.DataFrame(
         {
@@ -63,6 +57,25 @@ def step_table(run: Run, duration_s: float) -> pd.DataFrame:
             "t_end_s": t_end,
             "n_cycles": (t_end - t_start) * f,
         }
+    )
+
+
+def steps_inside(run: Run, duration_s: float) -> list:
+    """The ``gamma_steps`` that start before ``duration_s`` (the recording's end, s)."""
+    return [st for st in run.gamma_steps if st[0] < duration_s]
+
+
+def steps_after_end(run: Run, duration_s: float) -> str | None:
+    """A warning naming the steps that start at or after the recording's end, or None."""
+    n_in = len(steps_inside(run, duration_s))
+    late = len(run.gamma_steps) - n_in
+    if run.kind != "sweep" or late == 0:
+        return None
+    first = run.gamma_steps[n_in]
+    return (
+        f"{late} gamma step(s) start at or after the end of the recording "
+        f"({duration_s:g} s), e.g. gamma_steps[{n_in}] at {first[0]:g} s "
+        f"(Gamma {first[1]:g}): no data there, left out"
     )
 
 
@@ -138,7 +151,10 @@ class ValidationReport:
             "sample_rate_hz": self.fs,
             "n_samples": self.n_samples,
             "t_start_s": self.t_start_s,
-            "duration_s": self.duration_s,
+            # the recording's length; its end on the time axis is t_end_s (they differ
+            # when a time_s column starts later than 0)
+            "duration_s": self.duration_s - self.t_start_s,
+            "t_end_s": self.duration_s,
             "time_column": self.has_time_column,
             "contact_level": r.contact_level,
             "channels": [
@@ -214,6 +230,9 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
         out.append("accel channel without accel_v_per_g: accelerations stay in volts")
     if run.kind == "drop" and run.gamma_steps:
         out.append("gamma_steps ignored in a drop run")
+    late = steps_after_end(run, rec.duration_s)
+    if late:
+        out.append(late)
     if run.kind == "sweep" and len(steps):
         short = steps.index[steps["n_cycles"] <= run.settle_cycles].tolist()
         if short:

@@ -21,6 +21,7 @@ replacement (seeded), refitted ``n_boot`` times, 2.5th and 97.5th percentiles.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -110,6 +111,128 @@ def bounce_sequence(t_fall_s, takeoff_s, landing_s, min_flight_s: float = MIN_FL
     return np.asarray(out)
 
 
+#: A landing sooner after the release than this share of the free-fall time
+#: ``sqrt(2 h / g)`` (friction only lengthens the fall) is not the mass: a spark.
+MIN_FALL_SHARE = 0.8
+#: A split is mended where merging two flights shrinks the scatter of the bounce
+#: flights' logarithms about a geometric sequence by this factor, from at least
+#: ``SPLIT_MIN_SCATTER`` (sum of squares; 0.003 is a flight 5 % off the sequence).
+SPLIT_GAIN, SPLIT_MIN_SCATTER = 10.0, 0.003
+
+
+def first_landing(landing_s, release_t_s: float, h_m: float, g: float = G_STANDARD):
+    """Index of the first landing that can be the mass's, and the sooner ones' count.
+
+    ``landing_s`` (n,) sorted contact starts, s. A contact sooner after ``release_t_s``
+    than ``MIN_FALL_SHARE`` of the free fall ``sqrt(2 h / g)`` cannot be the mass's
+    landing (friction only slows the fall; the share leaves room for a release time
+    read a little late): an electrical spark, which otherwise was taken as the landing
+    and the real bounces as too few. None when no landing qualifies.
+    """
+    landing_s = np.asarray(landing_s, dtype=np.float64)
+    after = np.flatnonzero(landing_s > release_t_s)
+    t_min = release_t_s + MIN_FALL_SHARE * np.sqrt(2.0 * h_m / g)
+    ok = after[landing_s[after] >= t_min]
+    if ok.size == 0:
+        return None, int(after.size)
+    return int(ok[0]), int(np.count_nonzero(landing_s[after] < t_min))
+
+
+def _geometric_scatter(f: np.ndarray) -> float:
+    """Sum of squared residuals of ``log f`` about its straight line in the bounce index
+    (a free drop's flights shrink geometrically); 0 for fewer than three flights."""
+    if f.size < 3:
+        return 0.0
+    n = np.arange(f.size, dtype=np.float64)
+    y = np.log(f)
+    coef = np.polyfit(n, y, 1)
+    return float(np.sum((y - np.polyval(coef, n)) ** 2))
+
+
+def mend_splits(takeoff_s, landing_s, n_first: int = 6):
+    """Flights ``(takeoff_s, landing_s)`` with bounces split by a brief false contact
+    joined again, and the number joined.
+
+    A spark in a bounce's flight reads as a landing and a takeoff: the bounce becomes two
+    shorter flights, and the fit took them for two bounces (a probe's drop test: 79.8 ms
+    read as 39.8 and 40 ms, e 0.38 for 0.515, exit 0). Among the first ``n_first``
+    flights, two neighbours are joined (the contact between them counted as flight)
+    where that shrinks the scatter of the flights about a geometric sequence
+    (:func:`_geometric_scatter`) by ``SPLIT_GAIN`` from at least ``SPLIT_MIN_SCATTER``:
+    joining two real bounces breaks the sequence instead. One pair at a time, best first.
+    """
+    ta = list(np.asarray(takeoff_s, dtype=np.float64))
+    tl = list(np.asarray(landing_s, dtype=np.float64))
+    joined = 0
+    while True:
+        m = min(n_first, len(ta))
+        f = np.asarray(tl[:m]) - np.asarray(ta[:m])
+        if f.size < 3 or np.any(f <= 0):
+            break
+        base = _geometric_scatter(f)
+        if base < SPLIT_MIN_SCATTER:
+            break
+        best, best_i = base / SPLIT_GAIN, None
+        for i in range(m - 1):
+            g = np.concatenate([f[:i], [tl[i + 1] - ta[i]], f[i + 2 :]])
+            sc = _geometric_scatter(g)
+            if sc < best:
+                best, best_i = sc, i
+        if best_i is None:
+            break
+        tl[best_i] = tl[best_i + 1]
+        del ta[best_i + 1], tl[best_i + 1]
+        joined += 1
+    return np.asarray(ta), np.asarray(tl), joined
+
+
+#: A fall time this many standard errors away from what the bounces alone give is
+#: warned about: a release time read off by a few milliseconds.
+FALL_Z = 10.0
+
+
+def fall_from_bounces(flights_s, h_m: float, g: float = G_STANDARD, dt_s: float = 0.0):
+    """What the bounce flights alone say: ``(mu, e, t_fall_s, t_fall_sd_s)``, or None.
+
+    Given ``h_m``, the first flight and the flights' ratio fix ``mu`` and ``e`` without
+    the fall time, so the fall the model then predicts checks ``release_t_s`` (entered by
+    hand). Its standard error is the linearised least-squares one, from the residuals'
+    spread (at least the timing resolution ``dt_s / sqrt(12)``). None with fewer than
+    three flights or where the flights leave the two parameters unresolved.
+    """
+    fl = np.asarray(flights_s, dtype=np.float64)
+    n = fl.size
+    if n < 3:
+        return None
+
+    def model(p):
+        return model_times(p[0], p[1], h_m, n, g)
+
+    sol = least_squares(
+        lambda p: model(p)[1:] - fl,
+        (0.2, 0.5),
+        bounds=([-0.2, 0.0], [0.95, 1.0]),
+        x_scale=[0.1, 0.1],
+        xtol=1e-12,
+        ftol=1e-12,
+    )
+    p = sol.x
+    step = 1e-6
+    jac = np.stack(
+        [(model(p + step * d) - model(p - step * d)) / (2 * step) for d in np.eye(2)], axis=1
+    )
+    jf, jt = jac[1:], jac[0]
+    s2 = max(float(np.sum(sol.fun**2)) / max(n - 2, 1), dt_s**2 / 12.0)
+    try:
+        cov = s2 * np.linalg.inv(jf.T @ jf)
+    except np.linalg.LinAlgError:
+        return None
+    var = float(jt @ cov @ jt)
+    if not np.isfinite(var) or var < 0:
+        return None
+    return float(p[0]), float(p[1]), float(model(p)[0]), float(np.sqrt(var))
+
+
 def bootstrap_ci(data, h_m, g, mu, e, resid, n_boot: int, seed: int):
     """95 % percentile intervals of (mu, e) from a residual bootstrap; shapes (2,), (2,)."""
     rng = np.random.default_rng(seed)
@@ -131,7 +254,10 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     Returns the CONTRACTS.md section 4 dict plus ``run`` (the drop run's id, so that a
     diagnosis and the report can say whose calibration they show), ``t_fall_s``,
     ``flights_s`` (the fitted bounce flights), ``residuals_s``, ``ratio`` (r),
-    ``g_m_s2``, ``drop_height_m``, ``n_boot``, ``seed``.
+    ``g_m_s2``, ``drop_height_m``, ``n_boot``, ``seed``, and what the bounces alone
+    give (:func:`fall_from_bounces`: ``mu_from_bounces``, ``restitution_from_bounces``,
+    ``t_fall_from_bounces_s`` and its standard error ``t_fall_from_bounces_sd_s``; a
+    fall more than ``FALL_Z`` of them off is warned about).
 
     Raises
     ------
@@ -162,14 +288,34 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     )
     edges_s = sample_times(det.t_edge, fs, rec.time_s)
     landing = edges_s[det.kind == 1]
-    after = landing[landing > run.release_t_s]
-    if after.size == 0:
+    first, n_sparks = first_landing(landing, run.release_t_s, h, g)
+    if first is None:
         raise BouncelabError(rec.path, "no contact after release_t_s: the mass never lands")
-    t_fall = float(after[0] - run.release_t_s)
+    log = logging.getLogger(__name__)
+    if n_sparks:
+        log.warning(
+            "%s: %d contact(s) sooner after release_t_s than %.0f %% of the free fall from "
+            "%g m (%.1f ms) ignored: too soon to be the mass (sparks?)",
+            rec.path,
+            n_sparks,
+            100 * MIN_FALL_SHARE,
+            h,
+            1e3 * np.sqrt(2.0 * h / g),
+        )
+    t_land = float(landing[first])
+    t_fall = t_land - run.release_t_s
     ta, tl = det.flights()
     ta_s, tl_s = sample_times(ta, fs, rec.time_s), sample_times(tl, fs, rec.time_s)
-    keep = ta_s >= after[0]
-    flights = bounce_sequence(t_fall, ta_s[keep], tl_s[keep])
+    keep = ta_s >= t_land
+    ta_s, tl_s, n_joined = mend_splits(ta_s[keep], tl_s[keep])
+    if n_joined:
+        log.warning(
+            "%s: %d bounce flight(s) split by a brief contact joined again: the split "
+            "halves broke the geometric sequence of a free drop (sparks?)",
+            rec.path,
+            n_joined,
+        )
+    flights = bounce_sequence(t_fall, ta_s, tl_s)
     if flights.size < MIN_BOUNCES:
         raise BouncelabError(
             rec.path,
@@ -180,6 +326,30 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     mu, e, resid = fit_drop(t_fall, flights, h, g)
     data = np.concatenate([[t_fall], flights])
     mu_ci, e_ci = bootstrap_ci(data, h, g, mu, e, resid, n_boot, seed)
+    by_bounces = fall_from_bounces(flights, h, g, 1.0 / fs)
+    extra = {}
+    if by_bounces is not None:
+        mu_b, e_b, t_fall_b, sd_b = by_bounces
+        extra = {
+            "mu_from_bounces": mu_b,
+            "restitution_from_bounces": e_b,
+            "t_fall_from_bounces_s": t_fall_b,
+            "t_fall_from_bounces_sd_s": sd_b,
+        }
+        if abs(t_fall - t_fall_b) > FALL_Z * sd_b:
+            log.warning(
+                "%s: the fall from release_t_s (%.2f ms) disagrees with the bounces, which "
+                "alone give %.2f +- %.2f ms (mu %.3f, e %.3f against the fit's %.3f, %.3f): "
+                "check release_t_s",
+                rec.path,
+                1e3 * t_fall,
+                1e3 * t_fall_b,
+                1e3 * sd_b,
+                mu_b,
+                e_b,
+                mu,
+                e,
+            )
     return {
         "mu": mu,
         "mu_ci": [float(mu_ci[0]), float(mu_ci[1])],
@@ -195,4 +365,5 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
         "n_boot": int(n_boot),
         "seed": int(seed),
         "run": str(run.run_id),
+        **extra,
     }

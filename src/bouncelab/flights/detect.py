@@ -56,6 +56,7 @@ from bouncelab.errors import BouncelabError
 from bouncelab.flights import kernels
 from bouncelab.flights.interference import remove_interference
 
+Q_RESOLVED = 1.0  # standard errors the median RC ratio must stand above 0 to be kept
 BLOCK = 4096  # samples per level block (0.2 s at 20 kHz): drift is much slower
 MIN_COUNT = 32  # samples a level needs in a block to be trusted there
 THR_MIN, THR_MAX = 0.06, 0.45  # bounds of the threshold on z, fraction of the gap
@@ -305,7 +306,11 @@ def estimate_q(x, block, open_b, gap_b, max_ratios: int = 200_000, par=None) -> 
     if r.size < 8:
         return 0.0
     q = float(np.median(r))
-    return 0.0 if q < kernels.Q_MIN else min(q, 0.9)
+    # a median the ratios' noise does not resolve from 0 is a box front end read through
+    # noise (a probe's 0.3 V level gap: tau "7 us", and the RC placement moved edges by
+    # up to half a sample); standard error of the median from the ratios' MAD
+    se = 1.2533 * 1.4826 * float(np.median(np.abs(r - q))) / np.sqrt(r.size)
+    return 0.0 if q < max(kernels.Q_MIN, Q_RESOLVED * se) else min(q, 0.9)
 
 
 def _rc_ratios(x, block, open_b, inv, max_ratios, par, slow) -> np.ndarray:

@@ -73,6 +73,19 @@ def test_steps_past_the_end_are_left_out_with_a_warning(make_run):
     assert table["step"].tolist() == [0] and table["t_end_s"].tolist() == [DURATION_S]
 
 
+def test_steps_before_a_late_time_axis_are_a_warning(make_run):
+    """time_s from a lab clock (100 s at the first sample), steps written from 0: every
+    flight would land in the last step starting before 100 s, with its Gamma. Warned;
+    steps on the time axis are not (reference: test_runs_readers' lab-clock run)."""
+    t = 100.0 + np.arange(int(FS * DURATION_S)) / FS
+    report = validate_run(make_run("csv", name="from_zero", time_s=t))
+    (w,) = [w for w in report.warnings if "before the recording starts" in w]
+    assert w.startswith(f"{len(STEPS) - 1} gamma step(s)")
+    steps = [{"t_s": 100.0 + ts, "gamma": g} for ts, g in STEPS]
+    on_axis = make_run("csv", name="on_axis", time_s=t, yaml_overrides={"gamma_steps": steps})
+    assert not any("before the recording" in w for w in validate_run(on_axis).warnings)
+
+
 def test_validate_drop_run(make_run, capsys):
     run_dir = make_run("tdms", kind="drop")
     assert main(["validate", str(run_dir)]) == 0

@@ -375,7 +375,7 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         Gamma < 1, where the body never leaves the plate: no flights, no error).
     """
     from bouncelab.runs import load_run, read_recording, step_table
-    from bouncelab.runs.validate import steps_after_end
+    from bouncelab.runs.validate import steps_after_end, steps_before_start
 
     run = load_run(run_dir)
     rec = read_recording(run, roles=("continuity", "drive"))
@@ -389,9 +389,12 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     else:
         steps = step_table(run, rec.duration_s)[["step", "gamma", "t_start_s", "t_end_s"]]
         freq = run.drive_frequency_hz
-        late = steps_after_end(run, rec.duration_s)
-        if late:
-            logging.getLogger(__name__).warning("%s: %s", run.yaml_path, late)
+        for misplaced in (
+            steps_after_end(run, rec.duration_s),
+            steps_before_start(run, rec.t_start_s),
+        ):
+            if misplaced:
+                logging.getLogger(__name__).warning("%s: %s", run.yaml_path, misplaced)
     rest, opened = [], []
     for row in steps.itertuples(index=False):
         if run.kind == "sweep" and row.gamma < 1.0:

@@ -79,6 +79,24 @@ def steps_after_end(run: Run, duration_s: float) -> str | None:
     )
 
 
+def steps_before_start(run: Run, t_start_s: float) -> str | None:
+    """A warning naming the steps that end before the recording starts, or None.
+
+    A CSV whose ``time_s`` counts from a lab clock (12.3 s at its first sample) beside
+    steps written from 0 puts every flight in the last step that starts before the
+    recording, all with the wrong Gamma, and nothing else looks wrong.
+    """
+    t = [ts for ts, _ in run.gamma_steps]
+    early = sum(1 for i in range(len(t) - 1) if t[i + 1] <= t_start_s)
+    if run.kind != "sweep" or early == 0:
+        return None
+    return (
+        f"{early} gamma step(s) end before the recording starts (t = {t_start_s:g} s on its "
+        f"time axis), e.g. gamma_steps[0] at {t[0]:g} s: no data there; gamma_steps' t_s "
+        "must be on the recording's time axis (its time_s column when it has one)"
+    )
+
+
 def gamma_gaps(gammas, factor: float = GAP_FACTOR) -> list[tuple[float, float]]:
     """Ranges of Gamma with no step: jumps much larger than the typical spacing.
 
@@ -230,9 +248,12 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
         out.append("accel channel without accel_v_per_g: accelerations stay in volts")
     if run.kind == "drop" and run.gamma_steps:
         out.append("gamma_steps ignored in a drop run")
-    late = steps_after_end(run, rec.duration_s)
-    if late:
-        out.append(late)
+    for misplaced in (
+        steps_after_end(run, rec.duration_s),
+        steps_before_start(run, rec.t_start_s),
+    ):
+        if misplaced:
+            out.append(misplaced)
     if run.kind == "sweep" and len(steps):
         short = steps.index[steps["n_cycles"] <= run.settle_cycles].tolist()
         if short:

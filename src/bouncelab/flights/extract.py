@@ -462,7 +462,9 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         logging.getLogger(__name__).warning(
             "%s: %d takeoff(s) from rest while the plate pushed the body up (sin of the "
             "drive phase below %g after a contact over %g ms; median flight %.3g ms): the "
-            "continuity circuit opening while the body rests (a dirty or loose contact)",
+            "continuity circuit opening while the body rests (a dirty or loose contact), "
+            "or, where they are many, contacts and flights read the wrong way round (set "
+            "contact_level in run.yaml)",
             rec.path,
             int(pressed.sum()),
             PRESSED_SIN,

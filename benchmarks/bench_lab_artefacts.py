@@ -1,0 +1,255 @@
+"""Flight extraction on recordings with a real lab's faults, against the virtual rig's truth.
+
+Black-box probes of the contract (sessions 68-69) found faults that only show on signals
+our rig does not make. This benchmark keeps them measured: each case is a virtual-rig
+sweep (an inelastic body, e 0, which rests and rides, or a bouncing one, e 0.5; Gamma
+0.5-4.2 in 7 steps of 60 cycles) with one fault of a lab's signal chain applied, and its
+flights are scored against the rig's truth:
+
+- ``rc_100us``, ``rc_250us``: a front end slower than the sampling (a pull-up with a
+  filter capacitor; 2 and 5 samples at 20 kHz), made by the rig itself;
+- ``gain_0.4``, ``shift_20pct``, ``gain_0.35_offset_hum``: the channel's gain or offset
+  changed at 55 % of the recording (an amplifier knob, a supply), the last under a 50 Hz
+  hum of 2 % of the original gap;
+- ``hum_5pct``: a 50 Hz hum of 5 % of the gap, with its third harmonic;
+- ``dropouts_12``: the circuit opening for 2-3 samples at 12 random instants inside
+  contacts of at least 3 ms (a dirty contact);
+- ``soundcard_fir``, ``soundcard_fir_ac2hz`` (44.1 kHz): a linear-phase anti-alias filter
+  (127 taps, cut at 0.9 of Nyquist: its edges ring) on both channels, then a 2 Hz AC
+  coupling; its 63-sample delay is taken off the truth.
+
+Scores per case: true flights over 1 ms and the share found (both edges within 0.3 ms),
+flights in the table that match no true flight of any length (``spurious``), median and
+95th percentile of the flight-time error of the found ones (us), non-positive flights,
+and the warnings ``extract`` gave. Prints a line per case and writes
+``benchmarks/results/lab_artefacts.json``.
+
+    python benchmarks/bench_lab_artefacts.py [--work DIR] [--only CASE ...]
+
+About a minute on 2 cores. The recordings are made in a temporary folder (or ``--work``,
+where those already there are reused).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+from scipy import signal
+
+from bouncelab.flights import extract_run
+from bouncelab.rig import read_truth, run_rig
+from bouncelab.runs import load_run, read_recording
+
+OUT = Path(__file__).resolve().parent / "results" / "lab_artefacts.json"
+TOL_S = 0.3e-3  # both edges of a found flight within this of the truth's
+FIR_TAPS = 127
+
+
+def rig_config(e: float, fs: float, rc_s: float) -> dict:
+    """A virtual-rig sweep: restitution ``e``, sampling ``fs`` Hz, RC front end ``rc_s``."""
+    return {
+        "kind": "sweep",
+        "seed": 3,
+        "body": {"restitution": e},
+        "protocol": {"gammas": [0.5, 1.2, 1.6, 2.2, 2.8, 3.4, 4.2], "cycles_per_step": 60},
+        "recording": {"sample_rate_hz": fs},
+        "sensors": {"continuity": {"rc_time_s": rc_s}},
+    }
+
+
+def jump(gain: float, offset_v: float, hum_share: float = 0.0):
+    """A change of the continuity channel's gain and offset at 55 % of the recording."""
+
+    def apply(cont, drive, fs, rng):
+        x = cont.copy()
+        k = int(0.55 * x.shape[0])
+        x[k:] = x[k:] * gain + offset_v
+        return x + hum_share * np.ptp(cont) * hum(x.shape[0], fs), drive
+
+    return apply
+
+
+def hum(n: int, fs: float, third: float = 0.0) -> np.ndarray:
+    """A unit 50 Hz sine with ``third`` of its third harmonic, shape (n,)."""
+    t = np.arange(n) / fs
+    return np.sin(2 * np.pi * 50.0 * t + 0.3) + third * np.sin(6 * np.pi * 50.0 * t)
+
+
+def with_hum(cont, drive, fs, rng):
+    return cont + 0.05 * np.ptp(cont) * hum(cont.shape[0], fs, third=0.3), drive
+
+
+def dropouts(cont, drive, fs, rng, count=12):
+    """The circuit opening for 2-3 samples inside contacts of at least 3 ms."""
+    x = cont.copy()
+    lo, hi = np.percentile(x, [1, 99])
+    width = int(3e-3 * fs)
+    held = np.convolve(x < 0.5 * (lo + hi), np.ones(width), "same") >= width
+    for k in rng.choice(np.flatnonzero(held), size=count, replace=False):
+        x[k : k + 2 + k % 2] = hi
+    return x, drive
+
+
+def soundcard(ac_hz: float | None):
+    """A linear-phase anti-alias FIR on both channels, then optionally an AC coupling."""
+
+    def apply(cont, drive, fs, rng):
+        taps = signal.firwin(FIR_TAPS, 0.9)
+        out = []
+        for ch in (cont, drive):
+            y = signal.lfilter(taps, 1.0, ch)
+            if ac_hz:
+                b, a = signal.butter(1, ac_hz / (fs / 2), "high")
+                y = signal.lfilter(b, a, y)
+            out.append(y)
+        return out[0], out[1]
+
+    return apply
+
+
+#: case -> (e, fs, rc_s, fault or None, truth delay in samples)
+CASES = {
+    "clean_e0": (0.0, 20_000.0, 10e-6, None, 0),
+    "clean_e0.5": (0.5, 20_000.0, 10e-6, None, 0),
+    "rc_100us_e0": (0.0, 20_000.0, 100e-6, None, 0),
+    "rc_100us_e0.5": (0.5, 20_000.0, 100e-6, None, 0),
+    "rc_250us_e0": (0.0, 20_000.0, 250e-6, None, 0),
+    "gain_0.4_e0.5": (0.5, 20_000.0, 10e-6, jump(0.4, 0.0), 0),
+    "shift_20pct_e0.5": (0.5, 20_000.0, 10e-6, jump(1.0, -1.0), 0),
+    "gain_0.35_offset_hum_e0.5": (0.5, 20_000.0, 10e-6, jump(0.35, 0.5, 0.02), 0),
+    "hum_5pct_e0.5": (0.5, 20_000.0, 10e-6, with_hum, 0),
+    "dropouts_12_e0": (0.0, 20_000.0, 10e-6, dropouts, 0),
+    "soundcard_fir_e0": (0.0, 44_100.0, 10e-6, soundcard(None), FIR_TAPS // 2),
+    "soundcard_fir_e0.5": (0.5, 44_100.0, 10e-6, soundcard(None), FIR_TAPS // 2),
+    "soundcard_fir_ac2hz_e0.5": (0.5, 44_100.0, 10e-6, soundcard(2.0), FIR_TAPS // 2),
+}
+
+
+def base_run(work: Path, e: float, fs: float, rc_s: float) -> tuple[Path, Path]:
+    """The rig's recording for ``(e, fs, rc_s)`` and its truth, made once."""
+    name = f"rig_e{e:g}_fs{fs:g}_rc{rc_s * 1e6:g}us"
+    run_dir, truth = work / name, work / f"{name}.truth.parquet"
+    if not run_dir.exists():
+        cfg = work / f"{name}.yaml"
+        cfg.write_text(yaml.safe_dump(rig_config(e, fs, rc_s)))
+        run_rig(cfg, run_dir, truth)
+    return run_dir, truth
+
+
+def faulty_run(base: Path, out: Path, fault, seed: int) -> Path:
+    """``base`` with ``fault`` applied to its channels, written as an NPZ run."""
+    run, rec = load_run(base), read_recording(base)
+    cont, drive = fault(
+        rec.channels["continuity"], rec.channels["drive"], rec.fs, np.random.default_rng(seed)
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    np.savez(out / "rec.npz", continuity=cont, drive=drive)
+    spec = {
+        "format_version": 1,
+        "kind": "sweep",
+        "recording": "rec.npz",
+        "sample_rate_hz": rec.fs,
+        "channels": {"continuity": "continuity", "drive": "drive"},
+        "drive_frequency_hz": run.drive_frequency_hz,
+        "settle_cycles": run.settle_cycles,
+        "gamma_steps": [{"t_s": t, "gamma": g} for t, g in run.gamma_steps],
+        "source": "synthetic",
+    }
+    (out / "run.yaml").write_text(yaml.safe_dump(spec))
+    return out
+
+
+def score(flights, truth, delay_s: float) -> dict:
+    """The flight table against the rig's truth (shifted by ``delay_s``)."""
+    tt = truth["t_takeoff_s"].to_numpy() + delay_s
+    tl = truth["t_landing_s"].to_numpy() + delay_s
+    mt, ml = flights["t_takeoff_s"].to_numpy(), flights["t_landing_s"].to_numpy()
+    long = (tl - tt) > 1e-3
+    if mt.size == 0:
+        return {"n_true_long": int(long.sum()), "n_table": 0, "found_long": 0.0}
+    j = np.clip(np.searchsorted(mt, tt), 1, max(mt.size - 1, 1))
+    j = np.where(np.abs(mt[j - 1] - tt) < np.abs(mt[np.minimum(j, mt.size - 1)] - tt), j - 1, j)
+    j = np.minimum(j, mt.size - 1)
+    found = (np.abs(mt[j] - tt) < TOL_S) & (np.abs(ml[j] - tl) < TOL_S)
+    err = np.abs((ml[j] - mt[j]) - (tl - tt))[found & long]
+    i = np.clip(np.searchsorted(tt, mt), 1, tt.size - 1)
+    i = np.where(np.abs(tt[i - 1] - mt) < np.abs(tt[i] - mt), i - 1, i)
+    real = (np.abs(tt[i] - mt) < TOL_S) & (np.abs(tl[i] - ml) < TOL_S)
+    return {
+        "n_true_long": int(long.sum()),
+        "n_table": int(mt.size),
+        "found_long": float(found[long].mean()),
+        "spurious": int((~real).sum()),
+        "non_positive": int((flights["flight_s"] <= 0).sum()),
+        "median_err_us": float(np.median(err) * 1e6) if err.size else None,
+        "p95_err_us": float(np.percentile(err, 95) * 1e6) if err.size else None,
+    }
+
+
+class _Warnings(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--work", type=Path, help="keep recordings here (reused)")
+    p.add_argument("--only", nargs="*", help="case names")
+    p.add_argument("--out", type=Path, default=OUT)
+    args = p.parse_args()
+    names = args.only or list(CASES)
+    tmp = None if args.work else tempfile.TemporaryDirectory()
+    work = args.work or Path(tmp.name)
+    work.mkdir(parents=True, exist_ok=True)
+    results = {}
+    t_all = time.perf_counter()
+    for seed, name in enumerate(names):
+        e, fs, rc_s, fault, delay = CASES[name]
+        base, truth_path = base_run(work, e, fs, rc_s)
+        run_dir = base if fault is None else faulty_run(base, work / name, fault, seed)
+        handler = _Warnings()
+        logging.getLogger("bouncelab").addHandler(handler)
+        t0 = time.perf_counter()
+        try:
+            flights, _ = extract_run(run_dir)
+        finally:
+            logging.getLogger("bouncelab").removeHandler(handler)
+        truth, _ = read_truth(truth_path)
+        res = score(flights, truth, delay / fs) | {
+            "seconds": round(time.perf_counter() - t0, 2),
+            "warnings": [m.split(": ", 1)[-1][:160] for m in handler.messages],
+        }
+        results[name] = res
+        print(
+            f"{name:28s} found {res['found_long']:.3f} of {res['n_true_long']}, table "
+            f"{res['n_table']}, spurious {res.get('spurious')}, non-positive "
+            f"{res.get('non_positive')}, error median {res.get('median_err_us')} us; "
+            f"{len(res['warnings'])} warning(s)",
+            flush=True,
+        )
+    doc = {
+        "what": "flight extraction on virtual-rig sweeps with a lab's signal faults",
+        "seconds": round(time.perf_counter() - t_all, 1),
+        "numpy": np.__version__,
+        "cases": results,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {args.out}")
+    if tmp is not None:
+        tmp.cleanup()
+
+
+if __name__ == "__main__":
+    main()

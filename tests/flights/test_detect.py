@@ -57,15 +57,16 @@ def test_a_front_end_slower_than_the_sampling_has_its_rc_constant_read(tau_s):
     """tau of 2 and 5 samples: the third sample after an edge is never within 0.1 of the
     new level, so no edge passed as clean, q came out 0 and the box model read every RC
     tail as more edges (1050 flights for 454 at 100 us). Now q is read from edges that
-    keep decaying at one ratio: within 2 % of exp(-Ts/tau) (the synthetic truth), and no
-    flight invented (the 15-45 us contacts through such a front end are partly too faint
-    to see, so some flights merge; none are made up)."""
+    keep decaying at one ratio: within 2 % of exp(-Ts/tau) (the synthetic truth). And
+    the threshold's noise, which the RC tails inflated 6.5 times (0.065 V for 0.01 V:
+    91 % and 48 % of the flights found), is capped at 2.5 times the deconvolved
+    channel's own: >= 97 % found within 0.3 ms, none invented."""
     c = bouncing_contacts(10.0, seed=2)
     x, _ = continuity(c, 10.0, tau_s=tau_s, noise_v=0.01, drift_v=0.3, seed=3)
     det = detect_contacts(x)
     assert det.q == pytest.approx(np.exp(-1.0 / (tau_s * FS)), rel=0.02)
     _, found, n_det, n_true = match(det, c)
-    assert n_det <= n_true and found > 0.45
+    assert n_det <= n_true and found >= 0.97
 
 
 def test_glitches_removed_and_one_sample_contacts_kept():

@@ -313,6 +313,37 @@ def estimate_q(x, block, open_b, gap_b, max_ratios: int = 200_000, par=None) -> 
     return 0.0 if q < max(kernels.Q_MIN, Q_RESOLVED * se) else min(q, 0.9)
 
 
+#: RC decay per sample (tau over 0.8 samples) from which the tails of the edges,
+#: within a quarter gap of a level for several samples, inflate the block noise that the
+#: threshold is set from; there the threshold's noise is capped at ``SLOW_SDZ_CAP``
+#: times the deconvolved channel's own (:func:`deconvolved_noise`).
+SLOW_Q, SLOW_SDZ_CAP = 0.3, 2.5
+
+
+def deconvolved_noise(x, block, open_b, gap_b, q, chunks: int = 64, length: int = 4096):
+    """Robust standard deviation of the deconvolved contact fraction ``z`` (fraction of
+    the gap), read on ``chunks`` stretches of ``length`` samples spread over ``x``.
+
+    ``z[k] = (u[k] - q u[k-1]) / (1 - q)`` is 0 or 1 plus white noise away from edges
+    and an impulse at each edge; edges are a small minority of the samples, so
+    1.4826 x the median absolute deviation of ``z`` from its nearer level is the noise,
+    where the block levels' standard deviation also counts the RC tails (on a 100 us
+    front end at 20 kHz: 6.5 times the noise, and the 6-sigma threshold missed short
+    contacts).
+    """
+    n = x.shape[0]
+    starts = np.linspace(0, max(n - length, 0), chunks).astype(np.int64)
+    centre = (np.arange(open_b.shape[0]) + 0.5) * block
+    dev = []
+    for a in np.unique(starts):
+        k = np.arange(a, min(a + length, n))
+        u = (x[k] - np.interp(k, centre, open_b)) / np.interp(k, centre, gap_b)
+        z = (u[1:] - q * u[:-1]) / (1.0 - q)
+        dev.append(np.minimum(np.abs(z), np.abs(z - 1.0)))
+    d = np.concatenate(dev) if dev else np.zeros(1)
+    return float(1.4826 * np.median(d))
+
+
 def _rc_ratios(x, block, open_b, inv, max_ratios, par, slow) -> np.ndarray:
     """Finite RC ratios of :func:`kernels.rc_range`: a prefix usually holds enough clean
     edges, the whole recording is read only if it does not."""
@@ -782,6 +813,8 @@ def _detect(
     sd = np.where(np.isfinite(sd_b), sd_b, np.nanmedian(sd_b) if np.isfinite(sd_b).any() else 0)
     q = estimate_q(x, block, open_v, gap, par=par)
     sdz = sd / np.abs(gap) * np.sqrt(1.0 + q * q) / (1.0 - q)
+    if q >= SLOW_Q:
+        sdz = np.minimum(sdz, SLOW_SDZ_CAP * deconvolved_noise(x, block, open_v, gap, q))
     params = (block, open_v, 1.0 / gap, sdz, q, THR_MIN, THR_MAX, 0.0, GLITCH_K)
     # one edge pass with no prior; the prior (the typical duration of short contacts,
     # learnt on the first PRIOR_SAMPLES as the serial code's first pass does) only

@@ -222,3 +222,37 @@ def test_openings_of_a_resting_contact_are_warned_about(make_rig, tmp_path, capl
     print(f"{dropouts} openings: {n_pressed} pressed takeoffs")
     assert (n_pressed > 0) == bool(dropouts) and n_pressed <= dropouts
     assert ("pushed the body up" in caplog.text) == bool(dropouts)
+
+
+def test_a_side_of_a_gain_step_without_rests_keeps_the_rc(make_rig, tmp_path):
+    """The rig's bouncing body (e 0.5) with the channel's gain cut to 0.4 at 55 % of the
+    recording: the side after the cut is bouncing alone (Gamma 2.8-4.2), with too few
+    rests for a clean edge, so its RC constant was not measurable and its edges were
+    placed by the box model: flight-time error median 9 us there against 0.8 us on the
+    same flights unchanged. A gain step leaves the front end as it was: the side takes
+    the whole's RC, and the error is the unchanged recording's within 0.5 us
+    (reference: the rig's truth)."""
+    from flights_synth import write_npz_run
+
+    from bouncelab.runs import load_run, read_recording
+
+    run_dir, truth_path = make_rig("gain_step_e0.5", rig_sweep(0.5, 0.002, seed=3))
+    run, rec = load_run(run_dir), read_recording(run_dir)
+    x = rec.channels["continuity"].copy()
+    k = int(0.55 * x.shape[0])
+    x[k:] *= 0.4
+    spec = {
+        "kind": "sweep", "drive_frequency_hz": run.drive_frequency_hz,
+        "gamma_steps": [{"t_s": t, "gamma": g} for t, g in run.gamma_steps],
+    }  # fmt: skip
+    chans = {"continuity": x, "drive": rec.channels["drive"]}
+    stepped = write_npz_run(tmp_path / "gain_step", chans, fs=rec.fs, **spec)
+    truth, params = read_truth(truth_path)
+    after = truth[truth["t_takeoff_s"] > k / rec.fs + 0.01]
+    acc = {}
+    for name, folder in (("clean", run_dir), ("stepped", stepped)):
+        flights, _ = extract_run(folder)
+        acc[name] = accuracy(flights, after, params["derived"]["duration_s"])
+    print(acc)
+    assert acc["stepped"]["found_long"] == 1.0
+    assert acc["stepped"]["median_us"] < acc["clean"]["median_us"] + 0.5

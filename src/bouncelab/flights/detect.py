@@ -291,8 +291,11 @@ def point_sampled(t_edge: np.ndarray) -> bool:
     return bool(np.mean(inside) < POINT_MAX_SHARE)
 
 
-def estimate_q(x, block, open_b, gap_b, max_ratios: int = 200_000, par=None) -> float:
-    """RC decay per sample from clean edges (median ratio), 0 when not measurable.
+def estimate_q(
+    x, block, open_b, gap_b, max_ratios: int = 200_000, par=None, unmeasured: float = 0.0
+) -> float:
+    """RC decay per sample from clean edges (median ratio); ``unmeasured`` (0: the box
+    model) when fewer than 8 edges are clean.
 
     ``par``: a :class:`Parallel` to scan pieces at once (the ratios, concatenated in
     order, are the serial kernel's)."""
@@ -304,7 +307,7 @@ def estimate_q(x, block, open_b, gap_b, max_ratios: int = 200_000, par=None) -> 
         # one ratio; before, q came out 0 and the box model read every RC tail as edges
         r = _rc_ratios(x, block, open_b, 1.0 / gap_b, max_ratios, par, slow=True)
     if r.size < 8:
-        return 0.0
+        return unmeasured
     q = float(np.median(r))
     # a median the ratios' noise does not resolve from 0 is a box front end read through
     # noise (a probe's 0.3 V level gap: tau "7 us", and the RC placement moved edges by
@@ -580,12 +583,32 @@ def _in_order(det: Detection) -> Detection:
 
 
 def _detect_split(
-    x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz, depth=0
+    x,
+    contact_level,
+    rest_intervals,
+    open_intervals,
+    block,
+    path,
+    par,
+    sample_rate_hz,
+    depth=0,
+    q_unmeasured=0.0,
 ) -> Detection:
     """:func:`_detect`, and where the levels jumped (:func:`level_jump`: a gain or supply
-    change) each side again on its own, with the polarity found on the whole."""
+    change) each side again on its own, with the polarity found on the whole and, where a
+    side holds too few clean edges to measure it, the whole's RC constant (a gain or
+    offset step leaves the front end as it was: a side of bouncing alone, with no rests,
+    was read with the box model, its flight times 9 us off for 0.8)."""
     det = _detect(
-        x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz
+        x,
+        contact_level,
+        rest_intervals,
+        open_intervals,
+        block,
+        path,
+        par,
+        sample_rate_hz,
+        q_unmeasured,
     )
     cut = level_jump(x, det) if depth < MAX_LEVEL_JUMPS else None
     if cut is None:
@@ -604,7 +627,9 @@ def _detect_split(
     parts = []
     for a, b in ((0, cut), (cut, x.shape[0])):
         try:
-            side = _detect_split(x[a:b], level, (), (), block, path, par, sample_rate_hz, depth + 1)
+            side = _detect_split(
+                x[a:b], level, (), (), block, path, par, sample_rate_hz, depth + 1, det.q
+            )
         except NoContactsError:
             side = None  # e.g. a side where the body rests all along
         parts.append((a, side))
@@ -782,9 +807,18 @@ _PER_BLOCK = ("open_v", "contact_v", "noise_v", "n_glitch", "n_contact", "interf
 
 
 def _detect(
-    x, contact_level, rest_intervals, open_intervals, block, path, par, sample_rate_hz=None
+    x,
+    contact_level,
+    rest_intervals,
+    open_intervals,
+    block,
+    path,
+    par,
+    sample_rate_hz=None,
+    q_unmeasured=0.0,
 ) -> Detection:
-    """:func:`detect_contacts` with its pieces run by ``par`` (a :class:`Parallel`)."""
+    """:func:`detect_contacts` with its pieces run by ``par`` (a :class:`Parallel`);
+    ``q_unmeasured``: the RC constant taken where too few edges are clean to measure it."""
     n = x.shape[0]
     s = _subsample(x)
     noise_f = par.submit(_robust_noise, s)
@@ -811,7 +845,7 @@ def _detect(
     open_v, contact_v = (lo, hi) if high else (hi, lo)
     gap = contact_v - open_v
     sd = np.where(np.isfinite(sd_b), sd_b, np.nanmedian(sd_b) if np.isfinite(sd_b).any() else 0)
-    q = estimate_q(x, block, open_v, gap, par=par)
+    q = estimate_q(x, block, open_v, gap, par=par, unmeasured=q_unmeasured)
     sdz = sd / np.abs(gap) * np.sqrt(1.0 + q * q) / (1.0 - q)
     if q >= SLOW_Q:
         sdz = np.minimum(sdz, SLOW_SDZ_CAP * deconvolved_noise(x, block, open_v, gap, q))

@@ -300,12 +300,12 @@ def estimate_q(
     ``par``: a :class:`Parallel` to scan pieces at once (the ratios, concatenated in
     order, are the serial kernel's)."""
     par = par or Parallel(1)
-    r = _rc_ratios(x, block, open_b, 1.0 / gap_b, max_ratios, par, slow=False)
+    r, slow = _rc_ratios(x, block, open_b, 1.0 / gap_b, max_ratios, par)
     if r.size < 8:
         # no edge settles within 0.1 of its level two samples on: a front end slower
         # than the sampling (tau over about 1.5 samples), read where the decay holds
         # one ratio; before, q came out 0 and the box model read every RC tail as edges
-        r = _rc_ratios(x, block, open_b, 1.0 / gap_b, max_ratios, par, slow=True)
+        r = np.concatenate([r, slow])
     if r.size < 8:
         return unmeasured
     q = float(np.median(r))
@@ -347,16 +347,17 @@ def deconvolved_noise(x, block, open_b, gap_b, q, chunks: int = 64, length: int 
     return float(1.4826 * np.median(d))
 
 
-def _rc_ratios(x, block, open_b, inv, max_ratios, par, slow) -> np.ndarray:
-    """Finite RC ratios of :func:`kernels.rc_range`: a prefix usually holds enough clean
-    edges, the whole recording is read only if it does not."""
+def _rc_ratios(x, block, open_b, inv, max_ratios, par) -> tuple[np.ndarray, np.ndarray]:
+    """Finite RC ratios of :func:`kernels.rc_range`, ``(strict, slow)``: a prefix usually
+    holds enough clean edges, the whole recording is read only if it does not."""
     n = x.shape[0]
     head = min(n, PRIOR_SAMPLES)
-    r = par.rc_ratios(x, 0, head, block, open_b, inv, max_ratios, slow)
+    r, slow = par.rc_ratios(x, 0, head, block, open_b, inv, max_ratios)
     if r.size < 200 and n > PRIOR_SAMPLES:
-        rest = par.rc_ratios(x, PRIOR_SAMPLES, n, block, open_b, inv, max_ratios, slow)
+        rest, rest_slow = par.rc_ratios(x, PRIOR_SAMPLES, n, block, open_b, inv, max_ratios)
         r = np.concatenate([r, rest])[:max_ratios]
-    return r[np.isfinite(r)]
+        slow = np.concatenate([slow, rest_slow])[:max_ratios]
+    return r[np.isfinite(r)], slow[np.isfinite(slow)]
 
 
 def _short_contact_prior(t_edge, kind, max_len=1.0) -> float:
@@ -429,12 +430,15 @@ class Parallel:
         extra = [c for c in cuts if lo < c < hi]
         return np.unique(np.concatenate([b, np.asarray(extra, dtype=b.dtype)]))
 
-    def rc_ratios(self, x, k_lo, k_hi, block, open_b, inv_b, max_out, slow=False) -> np.ndarray:
-        """:func:`kernels.rc_range` over ``[k_lo, k_hi)`` in pieces: the serial ratios."""
+    def rc_ratios(self, x, k_lo, k_hi, block, open_b, inv_b, max_out):
+        """:func:`kernels.rc_range` over ``[k_lo, k_hi)`` in pieces: the serial ratios,
+        ``(strict, slow)``."""
         pieces = _pairs(self.bounds(k_lo, k_hi))
-        args = [(x, a, e, block, open_b, inv_b, max_out, slow) for a, e in pieces]
+        args = [(x, a, e, block, open_b, inv_b, max_out) for a, e in pieces]
         parts = self.map(kernels.rc_range, args)
-        return np.concatenate(parts)[:max_out] if parts else np.empty(0)
+        if not parts:
+            return np.empty(0), np.empty(0)
+        return tuple(np.concatenate([p[i] for p in parts])[:max_out] for i in (0, 1))
 
     def block_levels(self, x, block, lo0, hi0, min_count):
         """:func:`kernels.block_levels_serial` in runs of blocks (bit for bit), and the

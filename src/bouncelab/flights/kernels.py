@@ -147,7 +147,7 @@ def _segment(k, block, centers_open, centers_inv):
 
 
 @njit(cache=True)
-def rc_ratios_serial(x, block, open_b, inv_b, max_out, slow=False):
+def rc_ratios_serial(x, block, open_b, inv_b, max_out):
     """Decay ratios right after clean edges, to estimate the RC constant q = exp(-1/tau).
 
     After a takeoff inside ``(k-1, k]`` the filtered signal only decays, so
@@ -155,16 +155,19 @@ def rc_ratios_serial(x, block, open_b, inv_b, max_out, slow=False):
     taken only at clean, held edges: two samples at the old level (within 0.1 of the
     gap), the first sample after the edge between 0.3 and 0.95 of the way (0.05-0.7
     for landings), the next moving on, and the one after that within 0.1 of the new
-    level (so a chatter impact or a one-sample contact does not spoil the ratio); with
-    ``slow``, also one still decaying at the same ratio (:func:`_settles`: a front end
-    slower than the sampling, whose third sample is never that close).
-    Returns up to ``max_out`` ratios.
+    level (so a chatter impact or a one-sample contact does not spoil the ratio): the
+    ``strict`` ratios. Those whose third sample is not that close but still decays at
+    the same ratio (:func:`_settle_kind`: a front end slower than the sampling) are
+    returned apart, as ``slow`` ratios.
+    Returns ``(strict, slow)``, up to ``max_out`` of each.
     """
     n = x.shape[0]
-    out = np.empty(max_out)
+    strict = np.empty(max_out)
+    slow = np.empty(max_out)
     m = 0
+    ms = 0
     if n < 5:
-        return out[:0]
+        return strict[:0], slow[:0]
     u = np.empty(5)  # u[k-1], u[k], u[k+1], u[k+2], u[k+3] of the window
     ks, ke, o0, so, i0, si = _segment(0, block, open_b, inv_b)
     for k in range(n):
@@ -176,39 +179,39 @@ def rc_ratios_serial(x, block, open_b, inv_b, max_out, slow=False):
         u[4] = (x[k] - (o0 + so * d)) * (i0 + si * d)
         if k < 4:
             continue
+        kind = 0
+        r = 0.0
         # takeoff after a held contact, then two samples that settle towards open
-        if u[0] > 0.9 and u[1] > 0.9 and 0.3 < u[2] < 0.95 and u[3] < u[2] and _settles(
-            u[2], u[3], u[4], slow
-        ):
-            if m < max_out:
-                out[m] = u[3] / u[2]
-                m += 1
+        if u[0] > 0.9 and u[1] > 0.9 and 0.3 < u[2] < 0.95 and u[3] < u[2]:
+            kind = _settle_kind(u[2], u[3], u[4])
+            r = u[3] / u[2]
         # landing after a held opening, then two samples that settle towards contact
-        elif (
-            u[0] < 0.1
-            and u[1] < 0.1
-            and 0.05 < u[2] < 0.7
-            and u[3] > u[2]
-            and _settles(1.0 - u[2], 1.0 - u[3], 1.0 - u[4], slow)
-        ):
-            if m < max_out:
-                out[m] = (1.0 - u[3]) / (1.0 - u[2])
-                m += 1
-    return out[:m]
+        if kind == 0 and u[0] < 0.1 and u[1] < 0.1 and 0.05 < u[2] < 0.7 and u[3] > u[2]:
+            kind = _settle_kind(1.0 - u[2], 1.0 - u[3], 1.0 - u[4])
+            r = (1.0 - u[3]) / (1.0 - u[2])
+        if kind == 2 and m < max_out:
+            strict[m] = r
+            m += 1
+        elif kind == 1 and ms < max_out:
+            slow[ms] = r
+            ms += 1
+    return strict[:m], slow[:ms]
 
 
 @njit(cache=True, inline="always")
-def _settles(a2, a3, a4, slow):
-    """Whether the distances ``a2 > a3``, ``a4`` to the new level (fractions of the gap)
-    of the three samples after an edge settle as one RC decay: ``a4`` within 0.1 of the
-    level, or, with ``slow`` (a front end slower than the sampling, tau over about 1.5
-    samples, whose third sample is never that close), still falling at the ratio
-    ``a3 / a2`` to within 0.1; a chatter impact or one-sample contact turns the signal
-    back instead.  Only a fallback: an offset of the levels (an uncorrected hum) also
-    decays "at one ratio", near 1."""
+def _settle_kind(a2, a3, a4):
+    """How the distances ``a2 > a3``, ``a4`` to the new level (fractions of the gap) of
+    the three samples after an edge settle: 2 when ``a4`` is within 0.1 of the level;
+    1 when it is not but still falls at the ratio ``a3 / a2`` to within 0.1 (one RC
+    decay on a front end slower than the sampling, tau over about 1.5 samples, whose
+    third sample is never that close); 0 otherwise (a chatter impact or one-sample
+    contact turns the signal back). Kind 1 is only a fallback: an offset of the levels
+    (an uncorrected hum) also "decays at one ratio", near 1."""
     if a4 < 0.1:
-        return True
-    return slow and a4 < a3 and abs(a4 * a2 - a3 * a3) < 0.1 * a2 * a3
+        return 2
+    if a4 < a3 and abs(a4 * a2 - a3 * a3) < 0.1 * a2 * a3:
+        return 1
+    return 0
 
 
 Q_MIN = 1e-4  # below this the RC leaves no trace in the next sample: box model
@@ -920,21 +923,23 @@ def levels_walk(x, block, lo0, hi0, min_count, rec):
 
 
 @njit(cache=True, nogil=True)
-def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out, slow=False):
+def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out):
     """The windows ``k_lo <= k < k_hi`` of :func:`rc_ratios_serial`: the same tests,
-    the same ratios in the same order, at most ``max_out``.
+    the same ratios in the same order, at most ``max_out`` of each kind.
 
     The window ``u[k-4..k]`` is a function of ``k`` alone, so a range can start
     anywhere (the four samples before it only fill the window): the ratios of
     ``rc_ratios_serial(x[:k1])`` are those of consecutive ranges covering ``[0, k1)``,
     concatenated and cut to ``max_out``.
     """
-    out = np.empty(max_out)
+    strict = np.empty(max_out)
+    slow = np.empty(max_out)
     m = 0
+    ms = 0
     k_first = max(k_lo, 4)
     k_hi = min(k_hi, x.shape[0])
     if k_hi <= k_first:
-        return out[:0]
+        return strict[:0], slow[:0]
     u0 = u_at(x, k_first - 4, block, open_b, inv_b)
     u1 = u_at(x, k_first - 3, block, open_b, inv_b)
     u2 = u_at(x, k_first - 2, block, open_b, inv_b)
@@ -948,22 +953,22 @@ def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out, slow=False):
         # the serial kernel's two tests; both need 0.05 < u2 < 0.95, which almost every
         # window (samples at a level) fails at once
         if 0.05 < u2 < 0.95:
-            if u0 > 0.9 and u1 > 0.9 and 0.3 < u2 < 0.95 and u3 < u2 and _settles(u2, u3, u4, slow):
-                if m < max_out:
-                    out[m] = u3 / u2
-                    m += 1
-            elif (
-                u0 < 0.1
-                and u1 < 0.1
-                and 0.05 < u2 < 0.7
-                and u3 > u2
-                and _settles(1.0 - u2, 1.0 - u3, 1.0 - u4, slow)
-            ):
-                if m < max_out:
-                    out[m] = (1.0 - u3) / (1.0 - u2)
-                    m += 1
+            kind = 0
+            r = 0.0
+            if u0 > 0.9 and u1 > 0.9 and 0.3 < u2 < 0.95 and u3 < u2:
+                kind = _settle_kind(u2, u3, u4)
+                r = u3 / u2
+            if kind == 0 and u0 < 0.1 and u1 < 0.1 and 0.05 < u2 < 0.7 and u3 > u2:
+                kind = _settle_kind(1.0 - u2, 1.0 - u3, 1.0 - u4)
+                r = (1.0 - u3) / (1.0 - u2)
+            if kind == 2 and m < max_out:
+                strict[m] = r
+                m += 1
+            elif kind == 1 and ms < max_out:
+                slow[ms] = r
+                ms += 1
         u0 = u1
         u1 = u2
         u2 = u3
         u3 = u4
-    return out[:m]
+    return strict[:m], slow[:ms]

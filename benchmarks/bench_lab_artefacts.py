@@ -16,12 +16,15 @@ flights are scored against the rig's truth:
   contacts of at least 3 ms (a dirty contact);
 - ``soundcard_fir``, ``soundcard_fir_ac2hz`` (44.1 kHz): a linear-phase anti-alias filter
   (127 taps, cut at 0.9 of Nyquist: its edges ring) on both channels, then a 2 Hz AC
-  coupling; its 63-sample delay is taken off the truth.
+  coupling; its 63-sample delay is taken off the truth;
+- ``ac_coupled_*``: both channels through a first-order high-pass of 0.5-20 Hz (a sound
+  card's AC-coupled input).
 
 Scores per case: true flights over 1 ms and the share found (both edges within 0.3 ms),
 flights in the table that match no true flight of any length (``spurious``), median and
 95th percentile of the flight-time error of the found ones (us), non-positive flights,
-and the warnings ``extract`` gave. Prints a line per case and writes
+the change of the takeoff phases against the unchanged recording's table (mrad), and
+the warnings ``extract`` gave. Prints a line per case and writes
 ``benchmarks/results/lab_artefacts.json``.
 
     python benchmarks/bench_lab_artefacts.py [--work DIR] [--only CASE ...]
@@ -114,6 +117,16 @@ def soundcard(ac_hz: float | None):
     return apply
 
 
+def ac_coupled(corner_hz: float):
+    """Both channels through a first-order high-pass (a sound card's AC coupling)."""
+
+    def apply(cont, drive, fs, rng):
+        b, a = signal.butter(1, corner_hz / (fs / 2), "high")
+        return signal.lfilter(b, a, cont), signal.lfilter(b, a, drive)
+
+    return apply
+
+
 #: case -> (e, fs, rc_s, fault or None, truth delay in samples)
 CASES = {
     "clean_e0": (0.0, 20_000.0, 10e-6, None, 0),
@@ -129,6 +142,9 @@ CASES = {
     "soundcard_fir_e0": (0.0, 44_100.0, 10e-6, soundcard(None), FIR_TAPS // 2),
     "soundcard_fir_e0.5": (0.5, 44_100.0, 10e-6, soundcard(None), FIR_TAPS // 2),
     "soundcard_fir_ac2hz_e0.5": (0.5, 44_100.0, 10e-6, soundcard(2.0), FIR_TAPS // 2),
+    "ac_coupled_0.5hz_e0": (0.0, 20_000.0, 10e-6, ac_coupled(0.5), 0),
+    "ac_coupled_2hz_e0.5": (0.5, 20_000.0, 10e-6, ac_coupled(2.0), 0),
+    "ac_coupled_20hz_e0.5": (0.5, 20_000.0, 10e-6, ac_coupled(20.0), 0),
 }
 
 
@@ -193,6 +209,24 @@ def score(flights, truth, delay_s: float) -> dict:
     }
 
 
+def phase_change(flights, clean, delay_s: float) -> dict:
+    """Median and largest change (mrad) of the takeoff phases of the flights that the
+    unchanged recording's table also holds (takeoffs within 0.3 ms, after ``delay_s``)."""
+    ct = clean["t_takeoff_s"].to_numpy() + delay_s
+    mt = flights["t_takeoff_s"].to_numpy()
+    if ct.size < 2 or mt.size == 0:
+        return {}
+    i = np.clip(np.searchsorted(ct, mt), 1, ct.size - 1)
+    i = np.where(np.abs(ct[i - 1] - mt) < np.abs(ct[i] - mt), i - 1, i)
+    ok = np.abs(ct[i] - mt) < TOL_S
+    d = flights["phi_takeoff"].to_numpy()[ok] - clean["phi_takeoff"].to_numpy()[i[ok]]
+    d = np.abs(np.angle(np.exp(1j * d)))
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return {}
+    return {"phase_median_mrad": float(np.median(d) * 1e3), "phase_max_mrad": float(d.max() * 1e3)}
+
+
 class _Warnings(logging.Handler):
     def __init__(self):
         super().__init__(logging.WARNING)
@@ -212,7 +246,7 @@ def main() -> None:
     tmp = None if args.work else tempfile.TemporaryDirectory()
     work = args.work or Path(tmp.name)
     work.mkdir(parents=True, exist_ok=True)
-    results = {}
+    results, clean = {}, {}
     t_all = time.perf_counter()
     for seed, name in enumerate(names):
         e, fs, rc_s, fault, delay = CASES[name]
@@ -226,7 +260,13 @@ def main() -> None:
         finally:
             logging.getLogger("bouncelab").removeHandler(handler)
         truth, _ = read_truth(truth_path)
-        res = score(flights, truth, delay / fs) | {
+        if fault is not None:
+            if base not in clean:
+                clean[base] = extract_run(base)[0]
+            phases = phase_change(flights, clean[base], delay / fs)
+        else:
+            phases = {}
+        res = score(flights, truth, delay / fs) | phases | {
             "seconds": round(time.perf_counter() - t0, 2),
             "warnings": [m.split(": ", 1)[-1][:160] for m in handler.messages],
         }
@@ -234,8 +274,8 @@ def main() -> None:
         print(
             f"{name:28s} found {res['found_long']:.3f} of {res['n_true_long']}, table "
             f"{res['n_table']}, spurious {res.get('spurious')}, non-positive "
-            f"{res.get('non_positive')}, error median {res.get('median_err_us')} us; "
-            f"{len(res['warnings'])} warning(s)",
+            f"{res.get('non_positive')}, error median {res.get('median_err_us')} us, "
+            f"phases {res.get('phase_median_mrad')} mrad; {len(res['warnings'])} warning(s)",
             flush=True,
         )
     doc = {

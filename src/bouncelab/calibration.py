@@ -264,6 +264,7 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     BouncelabError
         Not a drop run; no contact after the release; fewer than three bounces.
     """
+    from bouncelab.flights.coupling import ac_coupling_tau, undo_ac_coupling
     from bouncelab.flights.detect import detect_contacts
     from bouncelab.flights.extract import _step_slice, sample_times
     from bouncelab.runs import load_run, read_recording
@@ -278,8 +279,18 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     g = float(run.extra.get("g_m_s2", G_STANDARD) or G_STANDARD)
     h = float(run.drop_height_m)
     opened = [_step_slice(rec.t_start_s, run.release_t_s, fs, rec.time_s, rec.n_samples)]
+    x = rec.channels["continuity"]
+    tau_ac = ac_coupling_tau(x, fs)
+    if tau_ac is not None:
+        x = undo_ac_coupling(x, fs, tau_ac)
+        logging.getLogger(__name__).warning(
+            "%s: the continuity channel drains towards its mean as through an AC-coupled "
+            "input (corner %.3g Hz): undone before the detection",
+            rec.path,
+            1.0 / (2.0 * np.pi * tau_ac),
+        )
     det = detect_contacts(
-        rec.channels["continuity"],
+        x,
         run.contact_level,
         (),
         opened,

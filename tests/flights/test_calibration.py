@@ -199,3 +199,24 @@ def test_a_release_time_off_by_milliseconds_is_warned_about(tmp_path, caplog, of
     assert abs(cal["t_fall_from_bounces_s"] - t_fall) < 3 * cal["t_fall_from_bounces_sd_s"]
     assert cal["mu_from_bounces"] == pytest.approx(mu, abs=0.01)
     assert ("check release_t_s" in caplog.text) == (offset_ms != 0.0)
+
+
+@pytest.mark.parametrize("corner_hz", [0.5, 2.0])
+def test_a_drop_through_an_ac_coupled_input(tmp_path, corner_hz):
+    """A drop test recorded through a sound card's AC coupling: the mass held open for
+    1 s, then resting, drains towards the mean, and calibrate failed ("only 0/1
+    bounce(s)"). Undone first (flights/coupling.py): the generating mu and e to 0.005."""
+    from flights_synth import continuity, write_npz_run
+    from scipy import signal
+
+    mu, e, h, release, fs = 0.29, 0.515, 0.05, 1.0, 20_000.0
+    contacts = drop_contacts(mu, e, h, release, 100e-6, 6)
+    x, _ = continuity(contacts, contacts[-1][1], fs=fs, tau_s=10e-6, noise_v=0.01)
+    b, a = signal.butter(1, corner_hz / (fs / 2), "high")
+    run_dir = write_npz_run(
+        tmp_path / "drop_ac", {"continuity": signal.lfilter(b, a, x)}, fs=fs,
+        kind="drop", drop_height_m=h, release_t_s=release,
+    )  # fmt: skip
+    cal = calibrate_run(run_dir, n_boot=50, seed=0)
+    assert cal["mu"] == pytest.approx(mu, abs=0.005)
+    assert cal["restitution"] == pytest.approx(e, abs=0.005)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from bouncelab.flights.coupling import ac_coupling_tau, undo_ac_coupling
 from bouncelab.flights.detect import Detection, NoContactsError, detect_contacts
 from bouncelab.flights.phase import (
     MIN_FREQUENCY_CYCLES,
@@ -381,6 +382,20 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     rec = read_recording(run, roles=("continuity", "drive"))
     fs = float(rec.fs)
     x = rec.channels["continuity"]
+    drive = rec.channels.get("drive")
+    tau_ac = ac_coupling_tau(x, fs)
+    if tau_ac is not None:
+        # the drive channel came through the same input: its phase led by atan(fc / f)
+        x = undo_ac_coupling(x, fs, tau_ac)
+        drive = undo_ac_coupling(drive, fs, tau_ac) if drive is not None else None
+        logging.getLogger(__name__).warning(
+            "%s: the continuity channel drains towards its mean as through an AC-coupled "
+            "input (a sound card's; corner %.3g Hz, time constant %.3g s): undone, on the "
+            "drive channel too, before the detection",
+            rec.path,
+            1.0 / (2.0 * np.pi * tau_ac),
+            tau_ac,
+        )
     time_s = rec.time_s
     n = rec.n_samples
     if run.kind == "drop":
@@ -408,7 +423,6 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             det = None  # the body rests all along: no flights, and that is right
         else:
             raise
-    drive = rec.channels.get("drive")
     fits, freqs, phase_freq = {}, {}, freq
     if drive is not None and freq:
         freqs = drive_frequencies(drive, steps, fs, freq, time_s)

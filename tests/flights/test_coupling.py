@@ -90,3 +90,24 @@ def test_extract_undoes_a_coupled_run_and_says_so(tmp_path, caplog):
     t_got = np.sort(flights["t_takeoff_s"].to_numpy())
     assert t_got.shape == t_true[t_true > 2.0].shape
     assert np.max(np.abs(t_got - t_true[t_true > 2.0])) < 3e-4
+
+
+def test_validate_names_the_coupling(tmp_path):
+    """validate says what extract will do: the corner, within 3 % (reference: the
+    filter's); a DC channel gets no such line."""
+    from bouncelab.runs import validate_run
+
+    c = resting_then_bouncing()
+    x, _ = continuity(c, 8.0, noise_v=0.01, seed=4)
+    steps = [{"t_s": 0.0, "gamma": 0.5}, {"t_s": 2.0, "gamma": 3.0}]
+    for name, ch in (("coupled", high_pass(x, 2.0)), ("dc", x)):
+        run = write_npz_run(
+            tmp_path / name, {"continuity": ch}, kind="sweep", drive_frequency_hz=30.0,
+            gamma_steps=steps,
+        )  # fmt: skip
+        found = [w for w in validate_run(run).warnings if "AC-coupled" in w]
+        if name == "dc":
+            assert not found
+        else:
+            corner = float(found[0].split("corner ")[1].split(" Hz")[0])
+            assert corner == pytest.approx(2.0, rel=0.03)

@@ -267,6 +267,16 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
         no_contacts = _no_contacts(rec)
         if no_contacts:
             out.append(f"continuity channel: {no_contacts}; extract and calibrate will fail")
+        else:
+            from bouncelab.flights.coupling import ac_coupling_tau
+
+            tau = ac_coupling_tau(rec.channels["continuity"], rec.fs)
+            if tau is not None:
+                out.append(
+                    "continuity channel drains towards its mean as through an AC-coupled "
+                    f"input (a sound card's; corner {1 / (2 * np.pi * tau):.3g} Hz): "
+                    "extract and calibrate undo it (docs/flights.md)"
+                )
     drive = rec.channels.get("drive")
     if run.kind == "sweep" and drive is not None and run.drive_frequency_hz and len(steps):
         from bouncelab.flights.extract import drive_frequencies

@@ -42,14 +42,16 @@ def test_the_corner_is_read_and_the_levels_come_back(corner_hz):
 
 
 @pytest.mark.parametrize(
-    "change", ["none", "rc_250us", "gain_step", "hum", "drift"], ids=lambda c: c
+    "change", ["none", "rc_250us", "gain_step", "hum", "drift", "drift_2v"], ids=lambda c: c
 )
 def test_a_dc_channel_is_not_taken_for_a_coupled_one(change):
     """A DC channel, also through a slow RC front end, with a gain step to 0.4 (whose
-    orphans no inversion removes), a 5 % hum or a slow drift of 0.5 V: no coupling."""
+    orphans no inversion removes), a 5 % hum or a slow drift of 0.5 or 2 V (40 % of the
+    gap: half the samples off the global levels, which an inversion over tens of
+    seconds would 'mend'; the time constants searched stop at 5 s): no coupling."""
     c = resting_then_bouncing()
     tau_s = 250e-6 if change == "rc_250us" else 25e-6
-    drift = 0.5 if change == "drift" else 0.1
+    drift = {"drift": 0.5, "drift_2v": 2.0}.get(change, 0.1)
     x, _ = continuity(c, 8.0, tau_s=tau_s, noise_v=0.01, drift_v=drift, seed=4)
     if change == "gain_step":
         x[int(5.5 * FS) :] *= 0.4

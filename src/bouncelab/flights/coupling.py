@@ -13,7 +13,8 @@ by ``x = y + (1/tau) int y dt``:
   rig's recordings, RC front ends to 250 us), up to a quarter where the levels drain;
 * :func:`ac_coupling_tau` looks for the time constant only where that share exceeds
   ``SUSPECT_SHARE``: on the first ``SEARCH_S`` seconds, over a grid of ``tau`` from 5 ms
-  to 50 s by the orphan share of the inverted channel, then by the spread of its levels
+  to 5 s (corners of 0.03-30 Hz; longer ones would "mend" a slow drift of the levels,
+  which the block levels follow anyway) by the orphan share of the inverted channel, then by the spread of its levels
   between the grid's neighbours; the inversion is taken only where it leaves fewer than
   ``ACCEPT_SHARE`` of the samples orphaned and at most a fifth of the raw share (a gain
   step, whose orphans no inversion removes, stays as it was). A recording that mostly
@@ -35,7 +36,7 @@ SUSPECT_SHARE = 0.005  # orphaned share of samples above which an AC coupling is
 ACCEPT_SHARE = 0.01  # ... and below which (and a fifth of the raw share) it is undone
 GAIN = 5.0  # the inversion must leave at most 1/GAIN of the raw share orphaned
 SEARCH_S = 60.0  # seconds of the channel the time constant is read on
-TAU_GRID_S = np.logspace(np.log10(0.005), np.log10(50.0), 31)  # 5 ms to 50 s
+TAU_GRID_S = np.logspace(np.log10(0.005), np.log10(5.0), 25)  # 5 ms to 5 s (corners 0.03-30 Hz)
 
 
 def orphan_share(x: np.ndarray) -> float:

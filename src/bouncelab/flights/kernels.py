@@ -179,16 +179,7 @@ def rc_ratios_serial(x, block, open_b, inv_b, max_out):
         u[4] = (x[k] - (o0 + so * d)) * (i0 + si * d)
         if k < 4:
             continue
-        kind = 0
-        r = 0.0
-        # takeoff after a held contact, then two samples that settle towards open
-        if u[0] > 0.9 and u[1] > 0.9 and 0.3 < u[2] < 0.95 and u[3] < u[2]:
-            kind = _settle_kind(u[2], u[3], u[4])
-            r = u[3] / u[2]
-        # landing after a held opening, then two samples that settle towards contact
-        if kind == 0 and u[0] < 0.1 and u[1] < 0.1 and 0.05 < u[2] < 0.7 and u[3] > u[2]:
-            kind = _settle_kind(1.0 - u[2], 1.0 - u[3], 1.0 - u[4])
-            r = (1.0 - u[3]) / (1.0 - u[2])
+        kind, r = _rc_window(u[0], u[1], u[2], u[3], u[4])
         if kind == 2 and m < max_out:
             strict[m] = r
             m += 1
@@ -212,6 +203,24 @@ def _settle_kind(a2, a3, a4):
     if a4 < a3 and abs(a4 * a2 - a3 * a3) < 0.1 * a2 * a3:
         return 1
     return 0
+
+
+@njit(cache=True, inline="always")
+def _rc_window(u0, u1, u2, u3, u4):
+    """``(kind, ratio)`` of the window ``u[k-1..k+3]`` of :func:`rc_ratios_serial`:
+    kind 2 (strict) or 1 (slow front end) with the decay ratio after a clean, held
+    edge, 0 (and 0.0) for any other window."""
+    # takeoff after a held contact, then two samples that settle towards open
+    if u0 > 0.9 and u1 > 0.9 and 0.3 < u2 < 0.95 and u3 < u2:
+        kind = _settle_kind(u2, u3, u4)
+        if kind:
+            return kind, u3 / u2
+    # landing after a held opening, then two samples that settle towards contact
+    if u0 < 0.1 and u1 < 0.1 and 0.05 < u2 < 0.7 and u3 > u2:
+        kind = _settle_kind(1.0 - u2, 1.0 - u3, 1.0 - u4)
+        if kind:
+            return kind, (1.0 - u3) / (1.0 - u2)
+    return 0, 0.0
 
 
 Q_MIN = 1e-4  # below this the RC leaves no trace in the next sample: box model
@@ -953,14 +962,7 @@ def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out):
         # the serial kernel's two tests; both need 0.05 < u2 < 0.95, which almost every
         # window (samples at a level) fails at once
         if 0.05 < u2 < 0.95:
-            kind = 0
-            r = 0.0
-            if u0 > 0.9 and u1 > 0.9 and 0.3 < u2 < 0.95 and u3 < u2:
-                kind = _settle_kind(u2, u3, u4)
-                r = u3 / u2
-            if kind == 0 and u0 < 0.1 and u1 < 0.1 and 0.05 < u2 < 0.7 and u3 > u2:
-                kind = _settle_kind(1.0 - u2, 1.0 - u3, 1.0 - u4)
-                r = (1.0 - u3) / (1.0 - u2)
+            kind, r = _rc_window(u0, u1, u2, u3, u4)
             if kind == 2 and m < max_out:
                 strict[m] = r
                 m += 1

@@ -158,24 +158,33 @@ def mend_splits(takeoff_s, landing_s, n_first: int = 6):
     read as 39.8 and 40 ms, e 0.38 for 0.515, exit 0). Among the first ``n_first``
     flights, two neighbours are joined (the contact between them counted as flight)
     where that shrinks the scatter of the flights about a geometric sequence
-    (:func:`_geometric_scatter`) by ``SPLIT_GAIN`` from at least ``SPLIT_MIN_SCATTER``:
-    joining two real bounces breaks the sequence instead. One pair at a time, best first.
+    (:func:`_geometric_scatter`, over the flights up to the first shorter than
+    ``MIN_FLIGHT_S``, which the bounce sequence uses) by ``SPLIT_GAIN`` from at least
+    ``SPLIT_MIN_SCATTER``: joining two real bounces breaks the sequence instead, and the
+    chatter after the last bounce is not judged (the compliant generator's 1.0 and 0.1
+    ms flights were joined, harmlessly but with a warning). One pair at a time, best
+    first.
     """
     ta = list(np.asarray(takeoff_s, dtype=np.float64))
     tl = list(np.asarray(landing_s, dtype=np.float64))
     joined = 0
+
+    def scatter(f):  # over the flights the bounce sequence would use (>= 2 ms)
+        short = np.flatnonzero(f < MIN_FLIGHT_S)
+        return _geometric_scatter(f[: short[0]] if short.size else f)
+
     while True:
         m = min(n_first, len(ta))
         f = np.asarray(tl[:m]) - np.asarray(ta[:m])
         if f.size < 3 or np.any(f <= 0):
             break
-        base = _geometric_scatter(f)
+        base = scatter(f)
         if base < SPLIT_MIN_SCATTER:
             break
         best, best_i = base / SPLIT_GAIN, None
         for i in range(m - 1):
             g = np.concatenate([f[:i], [tl[i + 1] - ta[i]], f[i + 2 :]])
-            sc = _geometric_scatter(g)
+            sc = scatter(g)
             if sc < best:
                 best, best_i = sc, i
         if best_i is None:
@@ -189,6 +198,7 @@ def mend_splits(takeoff_s, landing_s, n_first: int = 6):
 #: A fall time this many standard errors away from what the bounces alone give is
 #: warned about: a release time read off by a few milliseconds.
 FALL_Z = 10.0
+MU_PLAUSIBLE = -0.01  # ... only where the bounces alone give a friction no lower than this
 
 
 def fall_from_bounces(flights_s, h_m: float, g: float = G_STANDARD, dt_s: float = 0.0):
@@ -233,9 +243,18 @@ def fall_from_bounces(flights_s, h_m: float, g: float = G_STANDARD, dt_s: float 
     return float(p[0]), float(p[1]), float(model(p)[0]), float(np.sqrt(var))
 
 
-def bootstrap_ci(data, h_m, g, mu, e, resid, n_boot: int, seed: int):
-    """95 % percentile intervals of (mu, e) from a residual bootstrap; shapes (2,), (2,)."""
+def bootstrap_ci(data, h_m, g, mu, e, resid, n_boot: int, seed: int, dt_s: float = 0.0):
+    """95 % percentile intervals of (mu, e) from a residual bootstrap; shapes (2,), (2,).
+
+    ``dt_s`` > 0 (the sample interval, s): each replicate also moves every edge by a
+    uniform draw within its sample interval (the fall time has one edge, the release
+    being a stated time; each flight two), from a generator of its own, so the residual
+    draws are those of ``dt_s = 0``. Without it, a few bounces that fit to microseconds
+    gave intervals a few 1e-4 wide that missed the truth by the half sample where an
+    edge sits within its interval (a probe: mu 0.2897 [0.2897, 0.2898] for 0.29).
+    """
     rng = np.random.default_rng(seed)
+    jitter = np.random.default_rng([seed, 1])
     n = data.size
     fitted = data + resid
     # inflate residuals for the two fitted parameters (unbiased spread)
@@ -244,6 +263,9 @@ def bootstrap_ci(data, h_m, g, mu, e, resid, n_boot: int, seed: int):
     es = np.empty(n_boot)
     for b in range(n_boot):
         star = fitted + rng.choice(r, size=n, replace=True)
+        if dt_s > 0:
+            u = jitter.uniform(-0.5 * dt_s, 0.5 * dt_s, size=(2, n))
+            star = star + u[0] - np.concatenate(([0.0], u[1, 1:]))
         mus[b], es[b], _ = _fit(star, h_m, g, (mu, e))
     return np.percentile(mus, [2.5, 97.5]), np.percentile(es, [2.5, 97.5])
 
@@ -336,7 +358,7 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
         )
     mu, e, resid = fit_drop(t_fall, flights, h, g)
     data = np.concatenate([[t_fall], flights])
-    mu_ci, e_ci = bootstrap_ci(data, h, g, mu, e, resid, n_boot, seed)
+    mu_ci, e_ci = bootstrap_ci(data, h, g, mu, e, resid, n_boot, seed, 1.0 / fs)
     by_bounces = fall_from_bounces(flights, h, g, 1.0 / fs)
     extra = {}
     if by_bounces is not None:
@@ -347,7 +369,10 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
             "t_fall_from_bounces_s": t_fall_b,
             "t_fall_from_bounces_sd_s": sd_b,
         }
-        if abs(t_fall - t_fall_b) > FALL_Z * sd_b:
+        # an unphysical friction from the bounces alone says they do not follow the
+        # model closely enough to check the release by (the compliant generator's soft
+        # contact: mu -0.073, its fall 4.7 ms from the stated one)
+        if mu_b >= MU_PLAUSIBLE and abs(t_fall - t_fall_b) > FALL_Z * sd_b:
             log.warning(
                 "%s: the fall from release_t_s (%.2f ms) disagrees with the bounces, which "
                 "alone give %.2f +- %.2f ms (mu %.3f, e %.3f against the fit's %.3f, %.3f): "

@@ -220,3 +220,23 @@ def test_a_drop_through_an_ac_coupled_input(tmp_path, corner_hz):
     cal = calibrate_run(run_dir, n_boot=50, seed=0)
     assert cal["mu"] == pytest.approx(mu, abs=0.005)
     assert cal["restitution"] == pytest.approx(e, abs=0.005)
+
+
+def test_a_noisy_drop_is_not_read_as_a_slow_front_end(tmp_path):
+    """6 % noise on the gap and a box front end: no edge is clean, and the slow-front-end
+    fallback read windows held level beside the noise as decays at a ratio near 1 (q
+    0.9, a tau of 10 samples): every bounce was lost ("only 0 bounce(s)"; the compliant
+    generator's noisy drop, bench_compliant_drop.py). A ratio of 0.9 or more is no
+    decay. Reference: the generating mu and e, to 0.005."""
+    from flights_synth import continuity, write_npz_run
+
+    mu, e, h, release, fs = 0.25, 0.5, 0.05, 0.2, 20_000.0
+    contacts = drop_contacts(mu, e, h, release, 100e-6, 6)
+    x, _ = continuity(contacts, contacts[-1][1], fs=fs, tau_s=0.0, noise_v=0.3, seed=7)
+    run_dir = write_npz_run(
+        tmp_path / "noisy", {"continuity": x}, fs=fs,
+        kind="drop", drop_height_m=h, release_t_s=release,
+    )  # fmt: skip
+    cal = calibrate_run(run_dir, n_boot=50, seed=0)
+    assert cal["mu"] == pytest.approx(mu, abs=0.005)
+    assert cal["restitution"] == pytest.approx(e, abs=0.005)

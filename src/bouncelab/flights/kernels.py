@@ -193,14 +193,16 @@ def rc_ratios_serial(x, block, open_b, inv_b, max_out):
 def _settle_kind(a2, a3, a4):
     """How the distances ``a2 > a3``, ``a4`` to the new level (fractions of the gap) of
     the three samples after an edge settle: 2 when ``a4`` is within 0.1 of the level;
-    1 when it is not but still falls at the ratio ``a3 / a2`` to within 0.1 (one RC
+    1 when it is not but still falls, at a ratio ``a3 / a2`` below 0.9, to within 0.1 (one RC
     decay on a front end slower than the sampling, tau over about 1.5 samples, whose
     third sample is never that close); 0 otherwise (a chatter impact or one-sample
     contact turns the signal back). Kind 1 is only a fallback: an offset of the levels
     (an uncorrected hum) also "decays at one ratio", near 1."""
     if a4 < 0.1:
         return 2
-    if a4 < a3 and abs(a4 * a2 - a3 * a3) < 0.1 * a2 * a3:
+    # a ratio near 1 is no decay: a level held beside noise (a 6 %-noise drop test read
+    # its noise as a "tau of 10 samples", q 0.9, and lost every bounce)
+    if a3 < 0.9 * a2 and a4 < a3 and abs(a4 * a2 - a3 * a3) < 0.1 * a2 * a3:
         return 1
     return 0
 

@@ -56,6 +56,7 @@ from bouncelab.errors import BouncelabError
 from bouncelab.flights import kernels
 from bouncelab.flights.interference import remove_interference
 
+SLOW_MAD_MAX = 0.05  # largest MAD of the slow-front-end ratios that is read as one RC
 Q_RESOLVED = 1.0  # standard errors the median RC ratio must stand above 0 to be kept
 BLOCK = 4096  # samples per level block (0.2 s at 20 kHz): drift is much slower
 MIN_COUNT = 32  # samples a level needs in a block to be trusted there
@@ -306,6 +307,10 @@ def estimate_q(
         # than the sampling (tau over about 1.5 samples), read where the decay holds
         # one ratio; before, q came out 0 and the box model read every RC tail as edges
         r = np.concatenate([r, slow])
+        # one RC gives one ratio (a MAD of 0.001 on the rig through 100-250 us); ratios
+        # spread wider are windows of noise that happened to fall
+        if r.size >= 8 and np.median(np.abs(r - np.median(r))) > SLOW_MAD_MAX:
+            return unmeasured
     if r.size < 8:
         return unmeasured
     q = float(np.median(r))

@@ -266,10 +266,14 @@ def main() -> None:
             phases = phase_change(flights, clean[base], delay / fs)
         else:
             phases = {}
-        res = score(flights, truth, delay / fs) | phases | {
-            "seconds": round(time.perf_counter() - t0, 2),
-            "warnings": [m.split(": ", 1)[-1][:160] for m in handler.messages],
-        }
+        res = (
+            score(flights, truth, delay / fs)
+            | phases
+            | {
+                "seconds": round(time.perf_counter() - t0, 2),
+                "warnings": [m.split(": ", 1)[-1][:160] for m in handler.messages],
+            }
+        )
         results[name] = res
         print(
             f"{name:28s} found {res['found_long']:.3f} of {res['n_true_long']}, table "

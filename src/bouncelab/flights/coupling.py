@@ -14,10 +14,11 @@ by ``x = y + (1/tau) int y dt``:
 * :func:`ac_coupling_tau` looks for the time constant only where that share exceeds
   ``SUSPECT_SHARE``: on the first ``SEARCH_S`` seconds, over a grid of ``tau`` from 5 ms
   to 5 s (corners of 0.03-30 Hz; longer ones would "mend" a slow drift of the levels,
-  which the block levels follow anyway) by the orphan share of the inverted channel, then by the spread of its levels
-  between the grid's neighbours; the inversion is taken only where it leaves fewer than
-  ``ACCEPT_SHARE`` of the samples orphaned and at most a fifth of the raw share (a gain
-  step, whose orphans no inversion removes, stays as it was). A recording that mostly
+  which the block levels follow anyway) by the orphan share of the inverted channel,
+  then by the spread of its levels between the grid's neighbours; the inversion is
+  taken only where it leaves fewer than ``ACCEPT_SHARE`` of the samples orphaned and
+  at most a fifth of the raw share (a gain step, whose orphans no inversion removes,
+  stays as it was). A recording that mostly
   bounces drains little (its open level is most of the time anyway): 1.4 % orphaned
   through a 2 Hz corner, 0.2 % once undone;
 * :func:`undo_ac_coupling` applies the inverse (trapezoidal integral, float64).

@@ -27,7 +27,10 @@ the change of the takeoff phases against the unchanged recording's table (mrad),
 the warnings ``extract`` gave. Prints a line per case and writes
 ``benchmarks/results/lab_artefacts.json``.
 
-    python benchmarks/bench_lab_artefacts.py [--work DIR] [--only CASE ...]
+    python benchmarks/bench_lab_artefacts.py [--work DIR] [--only CASE ...] [--jump-grid]
+
+``--jump-grid`` runs 50 gain and offset steps instead (five instants, five changes, with
+and without a 2 % hum; ``lab_artefacts_jump_grid.json``).
 
 About a minute on 2 cores. The recordings are made in a temporary folder (or ``--work``,
 where those already there are reused).
@@ -67,12 +70,12 @@ def rig_config(e: float, fs: float, rc_s: float) -> dict:
     }
 
 
-def jump(gain: float, offset_v: float, hum_share: float = 0.0):
-    """A change of the continuity channel's gain and offset at 55 % of the recording."""
+def jump(gain: float, offset_v: float, hum_share: float = 0.0, at: float = 0.55):
+    """A change of the continuity channel's gain and offset at ``at`` of the recording."""
 
     def apply(cont, drive, fs, rng):
         x = cont.copy()
-        k = int(0.55 * x.shape[0])
+        k = int(at * x.shape[0])
         x[k:] = x[k:] * gain + offset_v
         return x + hum_share * np.ptp(cont) * hum(x.shape[0], fs), drive
 
@@ -146,6 +149,22 @@ CASES = {
     "ac_coupled_2hz_e0.5": (0.5, 20_000.0, 10e-6, ac_coupled(2.0), 0),
     "ac_coupled_20hz_e0.5": (0.5, 20_000.0, 10e-6, ac_coupled(20.0), 0),
 }
+
+
+def jump_grid() -> dict:
+    """``--jump-grid``: gain and offset steps at five instants (in flight or in contact),
+    five changes, with and without a 2 % hum, on the bouncing body (50 cases)."""
+    changes = {
+        "gain0.5": (0.5, 0.0), "gain0.7_off0.2": (0.7, 0.2), "gain1.4": (1.4, 0.0),
+        "shift20pct": (1.0, -1.0), "gain0.35_off0.5": (0.35, 0.5),
+    }  # fmt: skip
+    cases = {}
+    for at in (0.27, 0.41, 0.55, 0.72, 0.86):
+        for name, (gain, offset) in changes.items():
+            for hum_share in (0.0, 0.02):
+                key = f"jump{at:g}_{name}_hum{hum_share:g}"
+                cases[key] = (0.5, 20_000.0, 10e-6, jump(gain, offset, hum_share, at), 0)
+    return cases
 
 
 def base_run(work: Path, e: float, fs: float, rc_s: float) -> tuple[Path, Path]:
@@ -240,16 +259,19 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--work", type=Path, help="keep recordings here (reused)")
     p.add_argument("--only", nargs="*", help="case names")
-    p.add_argument("--out", type=Path, default=OUT)
+    p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--jump-grid", action="store_true", help="the 50 gain/offset steps instead")
     args = p.parse_args()
-    names = args.only or list(CASES)
+    cases = jump_grid() if args.jump_grid else CASES
+    out = args.out or (OUT.with_name("lab_artefacts_jump_grid.json") if args.jump_grid else OUT)
+    names = args.only or list(cases)
     tmp = None if args.work else tempfile.TemporaryDirectory()
     work = args.work or Path(tmp.name)
     work.mkdir(parents=True, exist_ok=True)
     results, clean = {}, {}
     t_all = time.perf_counter()
     for seed, name in enumerate(names):
-        e, fs, rc_s, fault, delay = CASES[name]
+        e, fs, rc_s, fault, delay = cases[name]
         base, truth_path = base_run(work, e, fs, rc_s)
         run_dir = base if fault is None else faulty_run(base, work / name, fault, seed)
         handler = _Warnings()
@@ -282,15 +304,18 @@ def main() -> None:
             f"phases {res.get('phase_median_mrad')} mrad; {len(res['warnings'])} warning(s)",
             flush=True,
         )
+    bad = [k for k, r in results.items() if r["found_long"] < 1.0 or r.get("spurious")]
+    print(f"{len(bad)} of {len(results)} cases lost or invented flights")
     doc = {
         "what": "flight extraction on virtual-rig sweeps with a lab's signal faults",
+        "cases_losing_or_inventing": len(bad),
         "seconds": round(time.perf_counter() - t_all, 1),
         "numpy": np.__version__,
         "cases": results,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(doc, indent=1) + "\n")
-    print(f"wrote {args.out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {out}")
     if tmp is not None:
         tmp.cleanup()
 

@@ -180,12 +180,7 @@ def rc_ratios_serial(x, block, open_b, inv_b, max_out):
         if k < 4:
             continue
         kind, r = _rc_window(u[0], u[1], u[2], u[3], u[4])
-        if kind == 2 and m < max_out:
-            strict[m] = r
-            m += 1
-        elif kind == 1 and ms < max_out:
-            slow[ms] = r
-            ms += 1
+        m, ms = _keep_ratio(strict, slow, m, ms, kind, r)
     return strict[:m], slow[:ms]
 
 
@@ -223,6 +218,19 @@ def _rc_window(u0, u1, u2, u3, u4):
         if kind:
             return kind, (1.0 - u3) / (1.0 - u2)
     return 0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _keep_ratio(strict, slow, m, ms, kind, r):
+    """Append ``r`` to ``strict`` (kind 2) or ``slow`` (kind 1) while each has room;
+    returns their new fill counts ``(m, ms)``."""
+    if kind == 2 and m < strict.shape[0]:
+        strict[m] = r
+        m += 1
+    elif kind == 1 and ms < slow.shape[0]:
+        slow[ms] = r
+        ms += 1
+    return m, ms
 
 
 Q_MIN = 1e-4  # below this the RC leaves no trace in the next sample: box model
@@ -965,12 +973,7 @@ def rc_range(x, k_lo, k_hi, block, open_b, inv_b, max_out):
         # window (samples at a level) fails at once
         if 0.05 < u2 < 0.95:
             kind, r = _rc_window(u0, u1, u2, u3, u4)
-            if kind == 2 and m < max_out:
-                strict[m] = r
-                m += 1
-            elif kind == 1 and ms < max_out:
-                slow[ms] = r
-                ms += 1
+            m, ms = _keep_ratio(strict, slow, m, ms, kind, r)
         u0 = u1
         u1 = u2
         u2 = u3

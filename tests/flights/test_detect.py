@@ -193,3 +193,65 @@ def test_a_box_front_end_read_through_noise_stays_a_box(seed):
     assert det.q == 0.0
     assert found == 1.0 and n_det == n_true
     assert np.median(err) < 8e-6
+
+
+def _sound_card(fs=44_100.0, fir=True, seed=4):
+    """Short (20-60 us) contacts and chatter through a fast RC, then (``fir``) a
+    linear-phase anti-alias filter (127 taps, cut at 0.9 of Nyquist) as a sound card's;
+    returns the channel and the true contacts shifted by the filter's delay."""
+    from scipy import signal
+
+    c = bouncing_contacts(6.0, contact_s=40e-6, seed=seed)
+    x, _ = continuity(c, 6.0, fs=fs, tau_s=5e-6, noise_v=0.002, seed=seed, oversample=20)
+    if not fir:
+        return x, c
+    taps, delay = signal.firwin(127, 0.9), 63 / fs
+    y, _ = signal.lfilter(taps, 1.0, x, zi=signal.lfilter_zi(taps, 1.0) * x[0])  # no start-up
+    return y, [(a + delay, b + delay) for a, b in c]
+
+
+def test_a_front_end_that_rings_before_its_edges_has_its_lobes_taken_as_noise(monkeypatch):
+    """Reference: the contacts fed to the filter. A causal front end never moves before
+    its edge, a linear-phase filter does (its Gibbs lobes): read as noise, every true
+    flight is found and none is invented inside a contact; read as edges (the rule off),
+    the same recording gives flights of a few us inside contacts (before session 70 the
+    rig's recording through this filter read 6-21 such and lost 1-2 real flights)."""
+    fs = 44_100.0
+    x, c = _sound_card(fs)
+    det = detect_contacts(x, sample_rate_hz=fs)
+    assert det.ringing > 0.005
+    err, found, n_det, n_true = match(det, c, fs=fs)
+    assert found == 1.0
+    assert n_det == n_true  # nothing invented
+    assert np.median(err) < 10e-6
+
+    monkeypatch.setattr(D, "RING_NOISE", np.inf)
+    _, found_off, n_off, _ = match(detect_contacts(x, sample_rate_hz=fs), c, fs=fs)
+    assert n_off > n_true or found_off < 1.0
+
+
+def test_a_causal_front_end_is_not_read_as_ringing():
+    """The same contacts without the filter: the moves before the edges are the noise
+    (within a factor 2 of the noise as a fraction of the gap), and no ringing is taken."""
+    fs = 44_100.0
+    x, c = _sound_card(fs, fir=False)
+    det = detect_contacts(x, sample_rate_hz=fs)
+    assert det.ringing == 0.0
+    ring, n = D.pre_edge_ringing(x, det.t_edge, det.block, det.contact_v - det.open_v)
+    assert n > 100
+    assert 0.5 < ring / (0.002 / 5.0) < 2.0
+
+
+def test_a_hum_is_not_read_as_ringing():
+    """A causal channel (gap 5 V, noise 2 mV) under a 50 Hz hum of 5 % of the gap: the
+    hum's slope over the samples before an edge lies on a straight line, and the ringing
+    read is the noise's (1.3 x it). Read against a flat level, as first written in
+    session 70, the same recording gave 6.7 x the noise and the rule fired."""
+    fs = 20_000.0
+    x, _ = _sound_card(fs, fir=False)
+    x = x + 0.25 * np.sin(2 * np.pi * 50.0 * np.arange(x.shape[0]) / fs)
+    det = detect_contacts(x, sample_rate_hz=fs)
+    assert det.ringing == 0.0
+    ring, n = D.pre_edge_ringing(x, det.t_edge, det.block, det.contact_v - det.open_v)
+    assert n > 100
+    assert ring < 2.0 * (0.002 / 5.0)

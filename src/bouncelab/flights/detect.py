@@ -31,9 +31,11 @@ Rules (docs/flights.md has the full story):
   between the levels (:func:`point_sampled`) has every edge put in the middle of its
   interval, half a sample after the box model's reading.
 * Detection threshold on the deconvolved contact fraction ``z``: ``clip(6 sigma_z,
-  0.12, 0.45)``; a contact that fills less than that share of one sample interval is
+  0.06, 0.45)``; a contact that fills less than that share of one sample interval is
   not seen (about 6 us at 20 kHz with the usual RC front end), and the two flights
   around it merge into one.
+* A front end that rings before its edges (a sound card's linear-phase anti-alias
+  filter; :func:`pre_edge_ringing`) has its ringing taken as noise, and is read again.
 
 Speed (docs/flights.md, "Speed"): every pass over the samples is cut into pieces that
 run on ``numba.get_num_threads()`` threads (the kernels release the GIL), and the
@@ -104,6 +106,9 @@ class Detection:
     interference_v : (n_blocks,) float, rms of the fast interference (mains hum)
         subtracted before detection, volts (:mod:`.interference`); zeros when none was
         found or no sampling rate was given.
+    ringing : robust size of the channel's moves before its edges, fraction of the gap,
+        where it was taken as noise (:func:`pre_edge_ringing`: a filter that rings
+        before each edge, as a sound card's anti-alias filter does); 0 otherwise.
     """
 
     t_edge: np.ndarray
@@ -121,6 +126,7 @@ class Detection:
     block: int
     n_samples: int
     interference_v: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ringing: float = 0.0
 
     @property
     def tau_samples(self) -> float:
@@ -326,6 +332,68 @@ def estimate_q(
 #: threshold is set from; there the threshold's noise is capped at ``SLOW_SDZ_CAP``
 #: times the deconvolved channel's own (:func:`deconvolved_noise`).
 SLOW_Q, SLOW_SDZ_CAP = 0.3, 2.5
+
+
+#: Samples before an edge's interval where a causal front end is still at its level
+#: (``RING_LAGS``), and those its local level is read from (``RING_LEVEL_LAGS``); edges
+#: with another edge nearer than the farthest of them are not read. A ringing whose
+#: robust size exceeds ``RING_NOISE`` times the channel's sample noise, on
+#: ``RING_MIN_EDGES`` edges or more, is treated as noise (:func:`pre_edge_ringing`).
+RING_LAGS = (2, 3, 4)
+RING_LEVEL_LAGS = tuple(range(5, 13))
+RING_NOISE, RING_MIN_EDGES, RING_MAX_EDGES = 5.0, 50, 4096
+
+
+def _line_weights(src, dst) -> np.ndarray:
+    """(len(src), len(dst)) weights that carry samples at lags ``src`` to lags ``dst``
+    along their least-squares straight line."""
+    design = np.column_stack([np.ones(len(src)), np.asarray(src, float)])
+    return np.linalg.pinv(design).T @ np.vstack([np.ones(len(dst)), np.asarray(dst, float)])
+
+
+_RING_LINE = _line_weights(RING_LEVEL_LAGS, RING_LAGS)
+
+
+def pre_edge_ringing(x, t_edge, block, gap_b) -> tuple[float, int]:
+    """Robust size (fraction of the gap) of the channel's moves just before its edges.
+
+    A front end that is causal (a wire, an RC, a DAQ's sample-and-hold) holds its level
+    until the edge's own sample interval, so the samples 2-4 before it lie on the line
+    of the samples 5-12 before it, up to the noise. A sound card's linear-phase
+    anti-alias filter rings before each edge as after it (its Gibbs lobes, a few % of
+    the gap), and at a short contact those lobes and the contact's own smeared sample
+    crossed a threshold set from the quiet noise: a virtual-rig recording through such a
+    filter (44.1 kHz, 127 taps) read 6-21 flights of 5-23 us inside contacts and lost 1-2
+    real ones. The lobes are read here so that the detection can take them as noise.
+
+    Parameters
+    ----------
+    x : (n,) float, the continuity channel, V.
+    t_edge : (m,) float, edge times of a first detection, samples.
+    block : samples per level block; gap_b : (nb,) contact minus open level per block, V.
+
+    Returns
+    -------
+    (ring, n_edges) : 1.4826 x the median absolute deviation, fraction of the gap, of the
+        samples at :data:`RING_LAGS` before each isolated edge from the straight line
+        through those at :data:`RING_LEVEL_LAGS`; NaN and 0 with no isolated edge.
+    """
+    far = max(RING_LEVEL_LAGS)
+    k = np.ceil(t_edge).astype(np.int64)  # the edge lies in (k - 1, k]
+    prev = np.concatenate([[-np.inf], t_edge[:-1]])
+    keep = (t_edge - prev > far + 1) & (k - far >= 0) & (k < x.shape[0])
+    k = k[keep]
+    if k.size == 0:
+        return float("nan"), 0
+    k = k[:: -(-k.size // RING_MAX_EDGES)]  # spread over the recording; a median needs few
+    # the level is a straight line through the farther samples, carried to the nearer
+    # ones: a hum moves the channel by about its slope times the 5-sample lag, which a
+    # flat level read as ringing (6.7 x the noise under a 50 Hz hum of 5 % of the gap)
+    level = x[k[:, None] - np.array(RING_LEVEL_LAGS)] @ _RING_LINE
+    near = x[k[:, None] - np.array(RING_LAGS)] - level
+    gap = np.abs(gap_b[np.minimum(k // block, gap_b.shape[0] - 1)])
+    dev = np.abs(near) / gap[:, None]
+    return float(1.4826 * np.median(dev)), int(k.size)
 
 
 def deconvolved_noise(x, block, open_b, gap_b, q, chunks: int = 64, length: int = 4096):
@@ -808,6 +876,7 @@ def _joined(parts, whole: Detection, block: int, contact_high: bool) -> Detectio
         glitch_at=np.concatenate([d.glitch_at + a for a, d in found])[:4096],
         block=block,
         n_samples=whole.n_samples,
+        ringing=max(d.ringing for _, d in found),
         **per_block,
     )
 
@@ -829,6 +898,7 @@ def _detect(
     """:func:`detect_contacts` with its pieces run by ``par`` (a :class:`Parallel`);
     ``q_unmeasured``: the RC constant taken where too few edges are clean to measure it."""
     n = x.shape[0]
+    x_read = x  # as recorded: the ringing is read before any interference is subtracted
     s = _subsample(x)
     noise_f = par.submit(_robust_noise, s)
     lo0, hi0, _ = two_means(s)
@@ -859,21 +929,18 @@ def _detect(
     if q >= SLOW_Q:
         sdz = np.minimum(sdz, SLOW_SDZ_CAP * deconvolved_noise(x, block, open_v, gap, q))
     params = (block, open_v, 1.0 / gap, sdz, q, THR_MIN, THR_MAX, 0.0, GLITCH_K)
-    # one edge pass with no prior; the prior (the typical duration of short contacts,
-    # learnt on the first PRIOR_SAMPLES as the serial code's first pass does) only
-    # places the contacts that lie wholly inside one interval, so those are placed
-    # again afterwards: the same numbers as a second serial pass with the prior
-    results, pieces, starts = par.edges(x, params, cuts=(PRIOR_SAMPLES - 1,))
-    t = np.concatenate([r[0] for r in results])
-    kind = np.concatenate([r[1] for r in results])
-    t_head, k_head = _head_edges(x, results, pieces, starts, params)
-    d_prior = _short_contact_prior(t_head, k_head) if q > 0 else 0.0
-    if d_prior != 0.0:
-        offsets = np.cumsum([0] + [r[0].shape[0] for r in results[:-1]])
-        p_at = np.concatenate([r[7] + o for r, o in zip(results, offsets, strict=True)])
-        p_k = np.concatenate([r[8] for r in results])
-        p_z = np.concatenate([r[9] for r in results])
-        kernels.place_pulses(t, p_at, p_k, p_z, q, d_prior)
+    t, kind, results, pieces, starts, d_prior = _edge_pass(x, params, par)
+    # on the channel as recorded: the subtracted hum estimate bends over the few samples
+    # left out around each edge (1-2 mV/sample there against a 2 % hum's 0.5), which
+    # read as ringing, 4-5 x the noise, on gain steps under a hum
+    ring, n_ring = pre_edge_ringing(x_read, t, block, gap)
+    ringing = 0.0
+    if n_ring >= RING_MIN_EDGES and ring > RING_NOISE * noise / float(np.median(np.abs(gap))):
+        # a ringing front end: its lobes are noise to the threshold and the glitch rule
+        ringing = ring
+        sdz = np.maximum(sdz, ring)
+        params = (block, open_v, 1.0 / gap, sdz, q, THR_MIN, THR_MAX, 0.0, GLITCH_K)
+        t, kind, results, pieces, starts, d_prior = _edge_pass(x, params, par)
     nb = open_v.shape[0]
     n_glitch = np.zeros(nb, dtype=np.int64)
     n_contact = np.zeros(nb, dtype=np.int64)
@@ -904,7 +971,30 @@ def _detect(
         block=block,
         n_samples=int(n),
         interference_v=hum,
+        ringing=ringing,
     )
+
+
+def _edge_pass(x, params, par):
+    """Edge times (samples) and kinds of ``x`` under ``params``, with the pieces'
+    results, the pieces, their start states and the short-contact prior used."""
+    q = params[4]
+    # one edge pass with no prior; the prior (the typical duration of short contacts,
+    # learnt on the first PRIOR_SAMPLES as the serial code's first pass does) only
+    # places the contacts that lie wholly inside one interval, so those are placed
+    # again afterwards: the same numbers as a second serial pass with the prior
+    results, pieces, starts = par.edges(x, params, cuts=(PRIOR_SAMPLES - 1,))
+    t = np.concatenate([r[0] for r in results])
+    kind = np.concatenate([r[1] for r in results])
+    t_head, k_head = _head_edges(x, results, pieces, starts, params)
+    d_prior = _short_contact_prior(t_head, k_head) if q > 0 else 0.0
+    if d_prior != 0.0:
+        offsets = np.cumsum([0] + [r[0].shape[0] for r in results[:-1]])
+        p_at = np.concatenate([r[7] + o for r, o in zip(results, offsets, strict=True)])
+        p_k = np.concatenate([r[8] for r in results])
+        p_z = np.concatenate([r[9] for r in results])
+        kernels.place_pulses(t, p_at, p_k, p_z, q, d_prior)
+    return t, kind, results, pieces, starts, d_prior
 
 
 def _head_edges(x, results, pieces, starts, params):

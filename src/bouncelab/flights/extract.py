@@ -423,6 +423,16 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             det = None  # the body rests all along: no flights, and that is right
         else:
             raise
+    if det is not None and det.ringing > 0:
+        logging.getLogger(__name__).warning(
+            "%s: the continuity channel moves before its edges (%.2g of the level gap, "
+            "robust size), as behind a linear-phase anti-alias filter (a sound card's): "
+            "its lobes are taken as noise, so contacts or flights that fill less than "
+            "about %.2g of a sample interval are not seen",
+            rec.path,
+            det.ringing,
+            min(6.0 * det.ringing, 0.45),
+        )
     fits, freqs, phase_freq = {}, {}, freq
     if drive is not None and freq:
         freqs = drive_frequencies(drive, steps, fs, freq, time_s)

@@ -28,9 +28,13 @@ the warnings ``extract`` gave. Prints a line per case and writes
 ``benchmarks/results/lab_artefacts.json``.
 
     python benchmarks/bench_lab_artefacts.py [--work DIR] [--only CASE ...] [--jump-grid]
+        [--hum-grid]
 
 ``--jump-grid`` runs 50 gain and offset steps instead (five instants, five changes, with
-and without a 2 % hum; ``lab_artefacts_jump_grid.json``).
+and without a 2 % hum; ``lab_artefacts_jump_grid.json``). ``--hum-grid`` runs 144 mains
+hums (3-18 % of the swing, 50 or 60 Hz, on both levels or the open one only, 10 or 100 us
+front ends at 8-44.1 kHz, both bodies; ``lab_artefacts_hum_grid.json``, about 6 minutes);
+the recordings without hum are scored too (``base_*``), as the reference.
 
 About a minute on 2 cores. The recordings are made in a temporary folder (or ``--work``,
 where those already there are reused).
@@ -167,6 +171,48 @@ def jump_grid() -> dict:
     return cases
 
 
+def mains(share: float, f_hz: float, third: float, open_only: bool):
+    """A mains hum of ``share`` of the channel's swing at ``f_hz`` with ``third`` of its
+    third harmonic; ``open_only``: picked up in proportion to how open the circuit is
+    (the front end's own state: 0 in contact, 1 open), as a high-impedance open circuit
+    picks it up and a closed one does not."""
+
+    def apply(cont, drive, fs, rng):
+        t = np.arange(cont.shape[0]) / fs
+        h = (
+            share
+            * np.ptp(cont)
+            * (np.sin(2 * np.pi * f_hz * t + 0.3) + third * np.sin(6 * np.pi * f_hz * t + 1.1))
+        )
+        if open_only:  # the rig's contact level is the low one
+            lo, hi = np.percentile(cont, [1, 99])
+            h = h * np.clip((cont - lo) / (hi - lo), 0.0, 1.0)
+        return cont + h, drive
+
+    return apply
+
+
+def hum_grid() -> dict:
+    """``--hum-grid``: mains hum of 3, 10 and 18 % of the swing, 50 Hz or 60 Hz with a
+    third harmonic of 0.3, on both levels or on the open level only, through a fast
+    (10 us) or slow (100 us) front end at 8, 20 and 44.1 kHz, on the inelastic and the
+    bouncing body (144 cases, and the 12 recordings without hum; the rig's drive is 30 Hz,
+    so a 60 Hz hum is locked to it)."""
+    cases = {}
+    for e in (0.0, 0.5):
+        for fs in (8_000.0, 20_000.0, 44_100.0):
+            for rc_s in (10e-6, 100e-6):
+                cases[f"base_e{e:g}_fs{fs:g}_rc{rc_s * 1e6:g}"] = (e, fs, rc_s, None, 0)
+                for share in (0.03, 0.1, 0.18):
+                    for f_hz, third in ((50.0, 0.0), (60.0, 0.3)):
+                        for open_only in (False, True):
+                            key = f"e{e:g}_fs{fs:g}_rc{rc_s * 1e6:g}_hum{share:g}_{f_hz:g}Hz" + (
+                                "_open" if open_only else ""
+                            )
+                            cases[key] = (e, fs, rc_s, mains(share, f_hz, third, open_only), 0)
+    return cases
+
+
 def base_run(work: Path, e: float, fs: float, rc_s: float) -> tuple[Path, Path]:
     """The rig's recording for ``(e, fs, rc_s)`` and its truth, made once."""
     name = f"rig_e{e:g}_fs{fs:g}_rc{rc_s * 1e6:g}us"
@@ -261,9 +307,11 @@ def main() -> None:
     p.add_argument("--only", nargs="*", help="case names")
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--jump-grid", action="store_true", help="the 50 gain/offset steps instead")
+    p.add_argument("--hum-grid", action="store_true", help="the 144 mains hums instead")
     args = p.parse_args()
-    cases = jump_grid() if args.jump_grid else CASES
-    out = args.out or (OUT.with_name("lab_artefacts_jump_grid.json") if args.jump_grid else OUT)
+    cases = jump_grid() if args.jump_grid else hum_grid() if args.hum_grid else CASES
+    grid = "jump_grid" if args.jump_grid else "hum_grid" if args.hum_grid else None
+    out = args.out or (OUT.with_name(f"lab_artefacts_{grid}.json") if grid else OUT)
     names = args.only or list(cases)
     tmp = None if args.work else tempfile.TemporaryDirectory()
     work = args.work or Path(tmp.name)

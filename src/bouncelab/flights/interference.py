@@ -13,7 +13,10 @@ noise.  A running mean of those residuals over ``WINDOW_S`` (edges and their
 neighbourhood left out, bridged by interpolation) estimates it; its slow part (a running
 mean over ``SLOW_S``, a whole number of mains periods at 50 and 60 Hz) is left to the
 level tracking, which already follows drift.  The fast part is subtracted only when it
-is clearly there (:func:`interference_gate`): on a clean channel nothing changes.
+is clearly there (:func:`interference_gate`): on a clean channel nothing changes.  What
+is subtracted is the running mean's spectral lines (:func:`find_lines`), fitted to the
+residuals block by block (:func:`fit_lines`): where edges are dense the running mean's
+bridges miss the hum, a fit of its lines does not.
 
 Pure numpy, in pieces of ``PIECE`` samples, so that memory stays a few arrays of one
 piece beside the copy that is returned.
@@ -22,11 +25,13 @@ piece beside the copy that is returned.
 from __future__ import annotations
 
 import numpy as np
+from scipy import fft as sp_fft
 
 WINDOW_S = 1e-3  # running mean of the residuals: 1/20 of a 50 Hz period (0.4 % error)
 SLOW_S = 0.1  # the slow part left to the level tracking: 5 periods at 50 Hz, 6 at 60 Hz
 GUARD_MIN = 4  # samples left out on each side of a crossing of the mid level (the edge)
 TAIL_REL = 0.002  # ... and after it, until an RC tail has decayed to this share of the gap
+MIN_RATIOS = 8  # decay ratios the guard needs; fewer: the decay is not measured
 EDGE_REL = 0.25  # residuals beyond this share of the gap are edges or glitches
 OUTLIER_K = 6.0  # the second pass leaves out residuals this many noise sigmas ...
 OUTLIER_REL = 0.01  # ... or this share of the gap off the first estimate
@@ -38,6 +43,17 @@ GATE_WINDOWS = 8  # windows the gate reads ...
 GATE_WINDOW_S = 0.4  # ... of this length each (at least four slow windows)
 STATE_RATIO = 0.5  # each state its own estimate when one state's hum is below this share
 PIECE = 1 << 20  # samples per piece
+LINE_MIN_HZ = 5.0  # spectral lines looked for above this (slower: the level tracking's)
+LINE_MAX_HZ = 0.5 / WINDOW_S  # ... and up to this: the running mean they are read on
+#   passes 64 % of a line there, nothing at twice it (harmonics to the 9th of 50 Hz)
+LINE_MAX = 12  # lines at most (50 or 60 Hz and harmonics, a drive-coupled ripple)
+LINE_STOP_REL = 0.001  # a line needs this share of the gap, amplitude ...
+LINE_STOP_FIRST = 0.02  # ... and this share of the strongest line's
+LINE_MIN_S = 1.0  # pieces shorter than this keep the running mean (lines unresolved)
+LINE_BLOCK_S = 0.2  # blocks of the line fit, overlapping by half (10 periods at 50 Hz)
+LINE_APART_S = 1.5  # lines closer than this many cycles per block are one (1.5 / 0.2 s)
+LINE_RCOND = 1e-3  # singular values of a block's normalised design below this share unused
+LINE_RCOND_STATE = 0.01  # ... in a fit of one state's samples alone (fewer, in clusters)
 
 
 def _window(sample_rate_hz: float, seconds: float, minimum: int) -> int:
@@ -81,8 +97,19 @@ def decay_ratios(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 def guard_samples(ratios: np.ndarray) -> int:
     """Samples left out after a crossing: the edge, and an RC tail down to ``TAIL_REL``
-    of the gap, its decay per sample ``q`` the median of :func:`decay_ratios`."""
-    q = float(np.clip(np.median(ratios), 0.0, 0.99)) if ratios.size else 0.0
+    of the gap, its decay per sample ``q`` the median of :func:`decay_ratios`.
+
+    Only ratios inside (-1, 1) are a decay; fewer than ``MIN_RATIOS`` of them measure
+    nothing, and ``GUARD_MIN`` is kept.  Why: on a fast front end few crossings land
+    mid-sample, and those that do are often chatter, whose next samples are not a tail.
+    One such ratio (3.4) once stood for the decay of a whole gain-stepped side: the
+    guard grew to 620 samples, nearly every sample was left out, and a hum of 6 % of the
+    gap was not subtracted (flight times 8-20 us off instead of 1)."""
+    ratios = np.asarray(ratios, dtype=np.float64)
+    ratios = ratios[np.abs(ratios) < 1.0]
+    if ratios.size < MIN_RATIOS:
+        return GUARD_MIN
+    q = float(np.clip(np.median(ratios), 0.0, 0.99))
     if q <= 0.0:
         return GUARD_MIN
     return max(GUARD_MIN, int(np.ceil(np.log(TAIL_REL) / np.log(q))) + 1)
@@ -109,9 +136,9 @@ def _smooth(resid: np.ndarray, used: np.ndarray, w: int) -> np.ndarray | None:
 
 
 def _estimate(resid: np.ndarray, used: np.ndarray, up: np.ndarray, w: int, per_state: bool):
-    """:func:`_smooth` of the used samples; ``per_state``: of each state's own used
-    samples, each applied to its own state's samples.  ``(n,)`` array, or None when no
-    window is full enough.
+    """:func:`_smooth` of the used samples: ``[est]``; ``per_state``: of each state's
+    own used samples, ``[lower state's, upper state's]`` (see :func:`_combine`).  Each
+    (n,); None when no window is full enough.
 
     Why per state: an open circuit is a high impedance and picks up hum that the closed
     one (a short) does not.  One estimate from both states sees half the hum and
@@ -122,13 +149,41 @@ def _estimate(resid: np.ndarray, used: np.ndarray, up: np.ndarray, w: int, per_s
     better one (at 5 % of the gap on both, 0.4 against 3.2 us median error).  A state
     without a full window anywhere in the piece takes the other state's estimate."""
     if not per_state:
-        return _smooth(resid, used, w)
+        est = _smooth(resid, used, w)
+        return None if est is None else [est]
     est = {state: _smooth(resid, used & (up == state), w) for state in (False, True)}
     if est[False] is None and est[True] is None:
         return None
     lo_est = est[False] if est[False] is not None else est[True]
     hi_est = est[True] if est[True] is not None else est[False]
-    return np.where(up, hi_est, lo_est)
+    return [lo_est, hi_est]
+
+
+def _combine(ests: list, share_hi: np.ndarray) -> np.ndarray:
+    """One estimate (n,) from :func:`_estimate`'s: the one, or the two states' mixed by
+    ``share_hi`` (n,), how far each sample lies from the lower level towards the upper
+    (0-1).  Why mixed: the hum of a level is picked up in proportion to how far the
+    circuit is in that state, and a front end slower than the sampling passes through
+    every share; at each sample's own state alone, a hum on the open level through a
+    100 us front end lost up to 60 % of the flights."""
+    if len(ests) == 1:
+        return ests[0]
+    return ests[0] + (ests[1] - ests[0]) * share_hi
+
+
+def _share_hi(x: np.ndarray, lo: float, hi: float, ests: list) -> np.ndarray:
+    """Each sample's share (n,) of the way from the lower level to the upper (0-1), read
+    off the sample with the interference of :func:`_combine` at that share taken out
+    (solved for it): a hum of a fifth of the gap on the upper level alone would
+    otherwise read a sample at that level as 0.8 of the way there."""
+    gap = hi - lo
+    if len(ests) == 1:
+        return np.clip((x - lo) / gap, 0.0, 1.0)
+    # x = lo + e_lo + (gap + e_hi - e_lo) share, solved for the share
+    lo_est, hi_est = ests
+    span = gap + hi_est - lo_est
+    span = np.where(np.abs(span) > 0.1 * abs(gap), span, 0.1 * gap)
+    return np.clip((x - lo - lo_est) / span, 0.0, 1.0)
 
 
 def _state_offsets(resid, up, used, block):
@@ -185,6 +240,23 @@ def fast_interference(
     fast : (n,) float, the interference minus its running mean over ``SLOW_S``, volts.
     used : (n,) bool, the samples whose residuals entered the estimate.
     """
+    ests, _, used, _ = _running_estimate(x, lo, hi, noise_v, sample_rate_hz, guard, per_state)
+    return _minus_slow(_combine(ests, _share_hi(x, lo, hi, ests)), sample_rate_hz), used
+
+
+def _minus_slow(est: np.ndarray, sample_rate_hz: float) -> np.ndarray:
+    """``est`` minus its running mean over ``SLOW_S`` (left to the level tracking)."""
+    n = est.shape[0]
+    w = _window(sample_rate_hz, WINDOW_S, 5)
+    slow, cs = _running_mean(est, np.ones(n), _window(sample_rate_hz, SLOW_S, w) // 2)
+    return est - slow / cs
+
+
+def _running_estimate(x, lo, hi, noise_v, sample_rate_hz, guard, per_state):
+    """The two passes of :func:`fast_interference`: ``(ests, resid, used, up)``: the
+    running-mean estimates of :func:`_estimate` (``[zeros]`` when no window is full
+    enough), the residuals from the levels (their per-state block offsets taken out),
+    the samples used, and the state (above the mid level) of each sample; each (n,)."""
     x = np.asarray(x, dtype=np.float64)
     n = x.shape[0]
     gap = hi - lo
@@ -197,16 +269,111 @@ def fast_interference(
     resid -= _state_offsets(resid, up, away, state_block)
     used = (np.abs(resid) < EDGE_REL * gap) & away
     resid -= _state_offsets(resid, up, used, state_block)
-    est = _estimate(resid, used, up, w, per_state)
-    if est is None:
-        return np.zeros(n), used
+    ests = _estimate(resid, used, up, w, per_state)
+    if ests is None:
+        return [np.zeros(n)], resid, used, up
+    est = _combine(ests, _share_hi(x, lo, hi, ests))
     odd = np.abs(resid - est) > max(OUTLIER_K * noise_v, OUTLIER_REL * gap)
     used &= ~_dilate(odd, GUARD_MIN, guard)
     resid -= _state_offsets(resid - est, up, used, state_block)
-    est2 = _estimate(resid, used, up, w, per_state)
-    est = est if est2 is None else est2
-    slow, cs = _running_mean(est, np.ones(n), _window(sample_rate_hz, SLOW_S, w) // 2)
-    return est - slow / cs, used
+    ests2 = _estimate(resid, used, up, w, per_state)
+    return (ests if ests2 is None else ests2), resid, used, up
+
+
+def find_lines(est: np.ndarray, sample_rate_hz: float, gap_v: float) -> np.ndarray:
+    """Frequencies (Hz, shape (m,), strongest first) of the spectral lines of an
+    interference estimate ``est`` (n,), volts: mains hum and its harmonics, or a ripple.
+
+    The strongest peak of the Hann-windowed spectrum between ``LINE_MIN_HZ`` and
+    ``LINE_MAX_HZ``, its frequency refined by a parabola through the log magnitudes of
+    its bin and the two beside it (a few thousandths of a bin for a Hann window), then
+    the frequencies within ``LINE_APART_S / LINE_BLOCK_S`` Hz of it masked (a block of
+    :func:`fit_lines` would not tell them apart: sidebands of the running mean's errors,
+    which follow the drive), up to ``LINE_MAX`` lines; a line below ``LINE_STOP_REL`` of
+    the gap or ``LINE_STOP_FIRST`` of the strongest (amplitudes) ends the list."""
+    n = est.shape[0]
+    if n < 16:
+        return np.zeros(0)
+    win = np.hanning(n)
+    n_fft = sp_fft.next_fast_len(n, real=True)  # a piece plus margins is no fast length
+    amp = 2.0 * np.abs(sp_fft.rfft((est - est.mean()) * win, n_fft)) / win.sum()
+    df = sample_rate_hz / n_fft
+    f_bin = np.arange(amp.shape[0]) * df
+    free = (f_bin >= LINE_MIN_HZ) & (f_bin <= LINE_MAX_HZ)
+    free[-1] = False
+    out = []
+    first = 0.0
+    for _ in range(LINE_MAX):
+        if not free[1:].any():
+            break
+        i = int(np.argmax(np.where(free, amp, -1.0)))
+        if amp[i] < max(LINE_STOP_REL * abs(gap_v), LINE_STOP_FIRST * first):
+            break
+        first = first or float(amp[i])
+        a, b, c = np.log(np.maximum(amp[i - 1 : i + 2], 1e-300))
+        den = a - 2.0 * b + c
+        shift = 0.5 * (a - c) / den if den < 0 else 0.0
+        out.append((i + float(np.clip(shift, -0.5, 0.5))) * df)
+        # the Hann main lobe (2 bins each side), and lines a block's fit cannot tell apart
+        apart = max(4, int(np.ceil(LINE_APART_S / LINE_BLOCK_S / df)))
+        free[max(0, i - apart) : i + apart + 1] = False
+    return np.array(out)
+
+
+def fit_lines(resid, used, up, freqs, sample_rate_hz, fallbacks) -> list:
+    """The lines ``freqs`` (Hz) fitted to the residuals ``resid`` (n,) on the ``used``
+    samples: least squares over blocks of ``LINE_BLOCK_S`` overlapping by half (an
+    amplitude and phase per line and block, and an offset per state, which is the
+    levels' and is not returned), cross-faded by triangles so that the estimate has no
+    steps.  ``fallbacks``: :func:`_estimate`'s running means, one (both states fitted
+    together) or two (each state, ``up``, its own fit); one stands in for its fit where
+    a block holds too few of its samples.  A list like ``fallbacks``, each (n,) volts
+    (for :func:`_combine`).
+
+    Why: the running mean bridges every edge's neighbourhood by a straight line; where
+    edges are dense (a body riding or chattering, a slow front end's long guard) those
+    bridges span much of a 180 Hz period, and the running mean missed up to a third of
+    a 60 Hz hum with its third harmonic (on a 100 us front end).  A line's fit needs
+    only its phases covered."""
+    n = resid.shape[0]
+    half = max(1, int(round(0.5 * LINE_BLOCK_S * sample_rate_hz)))
+    w_of = 2.0 * np.pi * np.asarray(freqs, dtype=np.float64) / sample_rate_hz
+    per_state = len(fallbacks) == 2
+    out = [np.zeros(n) for _ in fallbacks]
+    weight = np.zeros(n)
+    # every block sees the lines at the same offsets from its centre: one table
+    phase = np.outer(np.arange(-half, half), w_of)
+    table = np.concatenate((np.cos(phase), np.sin(phase)), axis=1)
+    for centre in range(0, n + half, half):
+        a, b = max(0, centre - half), min(n, centre + half)
+        if b <= a:
+            continue
+        k = np.arange(a, b)
+        basis = table[a - centre + half : b - centre + half]
+        st, u, r = up[a:b], used[a:b], resid[a:b]
+        groups = (~st, st) if per_state else (np.ones(b - a, dtype=bool),)
+        models = []
+        for rows, fallback in zip(groups, fallbacks, strict=True):
+            models.append(fallback[a:b])
+            fit = rows & u
+            # beside the lines, an offset per state fitted (the levels' errors over the
+            # block, not returned)
+            offsets = [m for m in (fit & ~st, fit & st) if m.any()]
+            design = np.concatenate([basis] + [m[:, None].astype(np.float64) for m in offsets], 1)
+            if np.count_nonzero(fit) < 4 * design.shape[1]:
+                continue
+            d = design[fit]
+            norm = np.maximum(np.sqrt(np.sum(d * d, axis=0)), 1e-12)
+            # directions the fitted samples hardly see are left out (coefficient 0), not
+            # extrapolated: a state seen in a few short contacts, all at one phase
+            rcond = LINE_RCOND_STATE if per_state else LINE_RCOND
+            coef = np.linalg.lstsq(d / norm, r[fit], rcond=rcond)[0] / norm
+            models[-1] = basis @ coef[: basis.shape[1]]
+        tri = 1.0 - np.abs(k - centre) / half
+        for acc, model in zip(out, models, strict=True):
+            acc[a:b] += tri * model
+        weight[a:b] += tri
+    return [acc / np.maximum(weight, 1e-12) for acc in out]
 
 
 def _pieces(n: int, margin: int, piece: int):
@@ -261,6 +428,19 @@ def hum_per_state(rms_levels) -> bool:
     return min(a, b) < STATE_RATIO * max(a, b)
 
 
+def line_interference(x, lo, hi, noise_v, sample_rate_hz, guard=GUARD_MIN, per_state=False):
+    """:func:`fast_interference`, with the running mean replaced by its spectral lines
+    (:func:`find_lines`) fitted to the residuals (:func:`fit_lines`) where the piece is
+    long enough to resolve them (``LINE_MIN_S``); the running mean where it is not, or
+    where a block lacks the samples to fit them.  ``(fast, used)``, both (n,)."""
+    ests, resid, used, up = _running_estimate(x, lo, hi, noise_v, sample_rate_hz, guard, per_state)
+    if x.shape[0] >= LINE_MIN_S * sample_rate_hz:
+        freqs = find_lines(_combine(ests, _share_hi(x, lo, hi, ests)), sample_rate_hz, hi - lo)
+        if freqs.size:
+            ests = fit_lines(resid, used, up, freqs, sample_rate_hz, ests)
+    return _minus_slow(_combine(ests, _share_hi(x, lo, hi, ests)), sample_rate_hz), used
+
+
 def remove_interference(
     x: np.ndarray,
     lo: float,
@@ -302,7 +482,10 @@ def remove_interference(
     slow = _window(sample_rate_hz, SLOW_S, w)
     length = max(4 * slow, int(GATE_WINDOW_S * sample_rate_hz))
     windows = _windows(n, length, GATE_WINDOWS)
-    guard = guard_samples(np.concatenate([decay_ratios(x[a:b], lo, hi) for a, b in windows]))
+    ratios = np.concatenate([decay_ratios(x[a:b], lo, hi) for a, b in windows])
+    if np.count_nonzero(np.abs(ratios) < 1.0) < MIN_RATIOS:  # too few there: all of it
+        ratios = decay_ratios(x, lo, hi)
+    guard = guard_samples(ratios)
     read = (x, windows, lo, hi, noise_v, sample_rate_hz, guard, slow)
     if not interference_gate(_windows_rms(*read, False)[2], hi - lo, noise_v, w):
         return x, np.zeros(nb)
@@ -312,7 +495,7 @@ def remove_interference(
     sq_b = np.zeros(nb)
     cnt_b = np.zeros(nb)
     for a, b, a0, b0 in _pieces(n, margin, piece):
-        fast, used = fast_interference(x[a:b], lo, hi, noise_v, sample_rate_hz, guard, per_state)
+        fast, used = line_interference(x[a:b], lo, hi, noise_v, sample_rate_hz, guard, per_state)
         f = fast[a0 - a : b0 - a]
         u = used[a0 - a : b0 - a]
         out[a0:b0] -= f

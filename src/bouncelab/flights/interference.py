@@ -242,7 +242,13 @@ def fast_interference(
     used : (n,) bool, the samples whose residuals entered the estimate.
     """
     ests, _, used, _ = _running_estimate(x, lo, hi, noise_v, sample_rate_hz, guard, per_state)
-    return _minus_slow(_combine(ests, _share_hi(x, lo, hi, ests)), sample_rate_hz), used
+    return _fast_part(x, lo, hi, ests, sample_rate_hz), used
+
+
+def _fast_part(x, lo, hi, ests, sample_rate_hz) -> np.ndarray:
+    """The estimates ``ests`` (:func:`_estimate`, :func:`fit_lines`) mixed by each sample's
+    share (:func:`_combine`, :func:`_share_hi`), minus their slow part: (n,) volts."""
+    return _minus_slow(_combine(ests, _share_hi(x, lo, hi, ests)), sample_rate_hz)
 
 
 def _minus_slow(est: np.ndarray, sample_rate_hz: float) -> np.ndarray:
@@ -437,14 +443,14 @@ def line_interference(x, lo, hi, noise_v, sample_rate_hz, guard=GUARD_MIN, per_s
     where not, or where a block lacks the samples to fit them.  ``(fast, used)``, both
     (n,)."""
     ests, resid, used, up = _running_estimate(x, lo, hi, noise_v, sample_rate_hz, guard, per_state)
-    running = _minus_slow(_combine(ests, _share_hi(x, lo, hi, ests)), sample_rate_hz)
+    running = _fast_part(x, lo, hi, ests, sample_rate_hz)
     if x.shape[0] < LINE_MIN_S * sample_rate_hz or not used.any():
         return running, used
     freqs = find_lines(running, sample_rate_hz, hi - lo)
     if not freqs.size:
         return running, used
     lines = fit_lines(resid, used, up, freqs, sample_rate_hz, ests)
-    fast = _minus_slow(_combine(lines, _share_hi(x, lo, hi, lines)), sample_rate_hz)
+    fast = _fast_part(x, lo, hi, lines, sample_rate_hz)
     # lines must carry the running mean: a mains hum does (R^2 0.98-1.00 on the hum
     # grid), the chatter of a body shaken at rest by a random vibration does not (-1.2
     # and 0.61 on the blind ool_vibration cases), and its lines are not to be subtracted

@@ -10,7 +10,7 @@ from flights_synth import bouncing_contacts, continuity
 from test_detect import FS, match
 
 from bouncelab.flights import detect, detect_contacts
-from bouncelab.flights.detect import level_jump, refine_cut
+from bouncelab.flights.detect import TRACKED_JUMP, level_jump, refine_cut
 
 
 def bouncing_after_rest(duration_s, rest_s, seed):
@@ -78,6 +78,39 @@ def test_no_jump_is_reported_on_a_steady_channel(tau_s, noise_v):
     c = bouncing_after_rest(8.0, 1.0, seed=23)
     x, _ = continuity(c, 8.0, tau_s=tau_s, noise_v=noise_v, drift_v=0.5, seed=24)
     whole = detect._detect(x, "auto", (), (), detect.BLOCK, None, detect.Parallel(1), None)
+    assert level_jump(x, whole) is None
+
+
+def chatter_contacts(duration_s, rest_s, seed):
+    """A rest, then bouncing whose contacts are, in stretches of 0.3-0.8 s, either
+    bursts of 3-14 contacts of 5-40 us (shorter than a 50 us sample) or single contacts
+    of 0.2-1 ms, with flights of 5-25 ms between them."""
+    rng = np.random.default_rng(seed)
+    c = [(0.0, rest_s)]
+    t = rest_s + 0.01
+    while t < duration_s - 0.05:
+        end, short = t + rng.uniform(0.3, 0.8), rng.random() < 0.5
+        while t < min(end, duration_s - 0.05):
+            for _ in range(rng.integers(3, 15) if short else 1):
+                d = rng.uniform(5e-6, 40e-6) if short else rng.uniform(2e-4, 1e-3)
+                c.append((t, t + d))
+                t += d + (rng.uniform(20e-6, 300e-6) if short else 0.0)
+            t += rng.uniform(5e-3, 25e-3)
+    return c
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_a_contact_level_read_off_partial_samples_is_not_a_jump(seed):
+    """Stretches of contacts shorter than a sample fill the contact band with partial
+    samples: the block contact level wanders from 0.03 V to 0.9-1 V (a fifth of the 5 V
+    gap) and back while the samples that reach the contact stay at 0 V.  Before the
+    samples were asked (``_step_held``), each wandering was taken for a jump the tracking
+    followed (the test can fail: 9 detection passes at seed 3).  Reference: the synthetic
+    levels never move."""
+    c = chatter_contacts(12.0, 2.0, seed)
+    x, _ = continuity(c, 12.0, tau_s=10e-6, noise_v=0.01, seed=seed)
+    whole = detect._detect(x, "auto", (), (), detect.BLOCK, None, detect.Parallel(1), None)
+    assert np.ptp(whole.contact_v) > TRACKED_JUMP * 5.0  # the wandering is there
     assert level_jump(x, whole) is None
 
 

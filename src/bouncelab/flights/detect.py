@@ -76,6 +76,9 @@ ORPHAN_MIN_POINTS = 8  # strided samples a block needs to be judged (a short las
 MAX_LEVEL_JUMPS = 8  # splits at most per recording side
 TRACKED_JUMP = 0.15  # ... or a tracked level that moves this share of the gap in a block
 JUMP_POINTS = 100_000  # strided samples read for level jumps
+HELD_WINDOW = 0.05  # share of the gap around a level whose samples show it held (a step's check)
+HELD_RATIO = 2.0  # ... and how many times the other level's (and the midpoint's) they outnumber
+HELD_MIN = 8  # samples near either level or the midpoint below which a step is not judged
 
 
 class NoContactsError(BouncelabError):
@@ -760,14 +763,56 @@ def level_jump(x: np.ndarray, det: Detection) -> int | None:
         to_end = not (cnt[r1:] >= ORPHAN_MIN_POINTS).any()  # no judged block after it
         cuts.append(max(r0 - 1, 1) * det.block if to_end else r1 * det.block)
     # a jump the tracking followed: levels interpolated across it blur one block
-    followed = np.flatnonzero(
+    for j in np.flatnonzero(
         (_level_step(det.open_v) > TRACKED_JUMP * g[:-1])
         | (_level_step(det.contact_v) > TRACKED_JUMP * g[:-1])
-    )
-    if followed.size:
-        cuts.append((int(followed[0]) + 1) * det.block)
+    ):
+        if any(
+            _step_held(x, level, int(j), det.block, g[j]) for level in (det.open_v, det.contact_v)
+        ):
+            cuts.append((int(j) + 1) * det.block)
+            break
     cuts = [c for c in cuts if 0 < c < n]
     return min(cuts) if cuts else None
+
+
+def _step_held(
+    x: np.ndarray, level: np.ndarray, j: int, block: int, gap: float, k: int = 3
+) -> bool:
+    """Whether the samples show ``level`` (per block, volts) stepping at the block
+    boundary ``j | j+1`` by more than ``TRACKED_JUMP`` of ``gap``.
+
+    The old level is the median of the ``k`` blocks before, the new one of the ``k``
+    after, as :func:`_level_step` reads them.  In the ``k - 1`` blocks before the
+    boundary the old level must be held, and in the ``k - 1`` blocks after the two the
+    step blurs, the new one: within ``HELD_WINDOW`` of the gap of it lie ``HELD_RATIO``
+    times as many samples as near the other level and as near the midpoint between
+    them (where only samples passing from one level to the other lie).  A window with
+    fewer than ``HELD_MIN`` samples near any of the three cannot refute the step.
+
+    A level read off samples that never settle is not a level that moved.  Contacts
+    shorter than a sample (a body chattering at high Gamma) fill the contact band with
+    partial samples, whose banded mean wanders by a fifth of the gap from block to block
+    while the samples that reach the contact sit where they were, and the partial
+    samples spread evenly about the mean: blind ``ool_vibration`` was split 5 times on
+    such wanderings, up or back down (11 detection passes, no real jump).
+    """
+    old = float(np.median(level[max(0, j - k + 1) : j + 1]))
+    new = float(np.median(level[j + 1 : j + 1 + k]))
+    if not abs(new - old) > TRACKED_JUMP * abs(gap):
+        return False
+    w = HELD_WINDOW * abs(gap)
+
+    def held(a: int, b: int, here: float, there: float) -> bool:
+        v = np.asarray(x[max(0, a) * block : max(0, b) * block], dtype=np.float64)
+        n_here, n_there, n_mid = (
+            int(np.count_nonzero(np.abs(v - c) < w)) for c in (here, there, 0.5 * (old + new))
+        )
+        if n_here + n_there + n_mid < HELD_MIN:
+            return True
+        return n_here >= HELD_RATIO * max(n_there, n_mid, 1)
+
+    return held(j - k + 1, j, old, new) and held(j + 3, j + 2 + k, new, old)
 
 
 def _level_step(level: np.ndarray, k: int = 3) -> np.ndarray:

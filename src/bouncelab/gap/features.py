@@ -28,6 +28,12 @@ chatter share
 takeoff phase
     circular mean of ``phi_takeoff`` per step (rad), chatter left out; the offset
     between data and simulation is wrapped to ``(-pi, pi]``. NaN without a drive channel.
+repeat
+    how closely a step's flights (in order, chatter left out) repeat: the least, over
+    periods ``p = 1 .. repeat_max_period``, of the median ``|T[n+p] - T[n]|`` (rad).
+    A periodic orbit of a deterministic model repeats to within the timing noise
+    (microseconds); a chaotic band does not repeat at all; a periodic orbit shaken by a
+    random force repeats only to within the force's scatter.
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-from bouncelab.gap.distances import _check_table, _flight_arrays, step_grid
+from bouncelab.gap.distances import _check_table, _flight_arrays, flight_order, step_grid
 
 TWO_PI = 2.0 * np.pi
 
@@ -61,6 +67,7 @@ class FeatureOptions:
     gamma_tol : difference in Gamma (onset, doublings, plateau edges) that counts as
         differing; None: 1.5 x the median spacing of the step grid, so that one step of
         disagreement at a boundary (the grid's resolution) is not a difference.
+    repeat_max_period : longest period (flights) the repeat of a step is read at.
     """
 
     min_flights: int = 3
@@ -75,6 +82,7 @@ class FeatureOptions:
     chatter_tol: float = 0.05
     phase_tol: float = 0.1
     gamma_tol: float | None = None
+    repeat_max_period: int = 8
 
 
 def count_clusters(
@@ -160,6 +168,22 @@ def locked_order(t: np.ndarray, opts: FeatureOptions = FeatureOptions()) -> int:
     return best if counts.max() >= opts.lock_share * len(t) else 0
 
 
+def repeat_error(t: np.ndarray, max_period: int = FeatureOptions.repeat_max_period) -> float:
+    """How closely the flights of one step repeat (rad): the least, over periods
+    ``p = 1 .. max_period``, of the median ``|t[n+p] - t[n]|``; NaN with fewer than
+    ``max_period + 8`` flights (a median over at least 8 pairs at every period).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,): flight times of one step in the order flown (rad), chatter
+        left out.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    if t.shape[0] < max_period + 8:
+        return float("nan")
+    return float(min(np.median(np.abs(t[p:] - t[:-p])) for p in range(1, max_period + 1)))
+
+
 def circular_mean(phi: np.ndarray) -> tuple[float, float]:
     """Circular mean (rad, in ``(-pi, pi]``) and resultant length (0..1) of angles.
 
@@ -199,9 +223,11 @@ def step_features(
     -------
     DataFrame, one row per step, ascending: ``step``, ``gamma``, ``n`` (flights),
     ``T_median`` (rad), ``chatter_share``, ``n_clusters``, ``spread`` (rad),
-    ``locked_n`` (0: not locked), ``phase_mean`` (rad), ``phase_R``.
+    ``locked_n`` (0: not locked), ``phase_mean`` (rad), ``phase_R``, ``repeat`` (rad,
+    :func:`repeat_error`).
     """
     _check_table(table, name)
+    table = table.iloc[flight_order(table)]  # each step's flights in the order flown
     step, t, settled = _flight_arrays(table, name)
     keep = settled if settled_only else np.ones(len(t), dtype=bool)
     phi = (
@@ -216,7 +242,7 @@ def step_features(
     chatter = chat_col if chat_col is not None else chatter_mask(step, t, opts)
 
     grid, gammas = step_grid(table, steps=steps)
-    order = np.argsort(step, kind="stable")
+    order = np.argsort(step, kind="stable")  # stable: each step's flights stay in order
     step, t, phi, chatter = step[order], t[order], phi[order], chatter[order]
     bounds = np.searchsorted(step, np.stack([grid, grid + 1]))
 
@@ -242,11 +268,12 @@ def step_features(
                 locked_order(main, opts),
                 phase_mean,
                 phase_r,
+                repeat_error(main, opts.repeat_max_period),
             )
         )
     columns = [
         "step", "gamma", "n", "T_median", "chatter_share", "n_clusters", "spread",
-        "locked_n", "phase_mean", "phase_R",
+        "locked_n", "phase_mean", "phase_R", "repeat",
     ]  # fmt: skip
     return pd.DataFrame(rows, columns=columns).astype(
         {"step": np.int64, "n": np.int64, "n_clusters": np.int64, "locked_n": np.int64}
@@ -382,7 +409,8 @@ def compare_features(
     dict with
     ``per_step``: DataFrame, one row per step: ``step``, ``gamma``, ``n_data``,
     ``n_sim``, ``clusters_data``, ``clusters_sim``, ``locked_data``, ``locked_sim``,
-    ``chatter_data``, ``chatter_sim``, ``phase_offset`` (rad, sim - data, wrapped), and
+    ``chatter_data``, ``chatter_sim``, ``phase_offset`` (rad, sim - data, wrapped),
+    ``repeat_data``, ``repeat_sim`` (rad, :func:`repeat_error`), and
     booleans ``differs_sticking`` (one side flies, the other not), ``differs_clusters``,
     ``differs_locking``, ``differs_chatter``, ``differs_phase``;
     ``takeoff_onset``, ``doubling_2``, ``doubling_4``, ``chatter_share``: each
@@ -419,6 +447,8 @@ def compare_features(
             "chatter_data": pd_["chatter_share"],
             "chatter_sim": ps_["chatter_share"],
             "phase_offset": offset,
+            "repeat_data": pd_["repeat"],
+            "repeat_sim": ps_["repeat"],
             "differs_sticking": fly_d != fly_s,
             "differs_clusters": both & (clusters_d != clusters_s),
             "differs_locking": pd_["locked_n"].to_numpy() != ps_["locked_n"].to_numpy(),

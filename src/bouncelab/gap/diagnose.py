@@ -892,8 +892,8 @@ def repeat_check(cmp: dict) -> dict:
     ps = cmp["per_step"]
     rep_d = ps["repeat_data"].to_numpy(dtype=np.float64)
     rep_s = ps["repeat_sim"].to_numpy(dtype=np.float64)
-    periodic = np.isfinite(rep_d) & (rep_s < REPEAT_TOL)
     valued = np.isfinite(rep_d)
+    periodic = valued & (rep_s < REPEAT_TOL)
     return {
         "model_periodic": int(np.count_nonzero(periodic)),
         "data_least": float(np.min(rep_d[valued])) if valued.any() else None,

@@ -154,6 +154,12 @@ CASES = {
     },
     "vibration": {"vib_rms": 2e-5, "seed": 73},
     "vibration_27hz": {"f": 27.0, "vib_rms": 3e-5, "g0": 0.5, "g1": 4.5, "dg": 0.1, "seed": 74},
+    # a vibration a tenth or less of those (0.1 g rms): within the gap's noise floor, seen
+    # only as flights that do not repeat where the model's do (session 73)
+    "vibration_weak": {"vib_rms": 2e-6, "seed": 75},
+    "vibration_weak_35hz": {
+        "f": 35.0, "vib_rms": 1.5e-6, "g0": 0.5, "g1": 4.5, "dg": 0.1, "seed": 76,
+    },
     "friction_delay": {"mu": 0.2, "delay_s": 0.001, "seed": 106},
     # protocols a lab may run that none above does: the steps in a random order (no state
     # carried from a neighbouring Gamma), a Gamma range never stepped, a fast and a slow

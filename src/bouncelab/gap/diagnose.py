@@ -54,6 +54,7 @@ from bouncelab.gap.fit import (
     objective_noise,
     poorly_identified,
     problem_cycles,
+    resolution_T,
     too_few_steps,
 )
 from bouncelab.gap.regions import segment_regions
@@ -90,11 +91,17 @@ PHASE_SIGMAS = 2.0
 PHASE_MIN_STEPS = 3
 
 #: A step repeats when the least median |T[n+p] - T[n]| over periods p of 1-8 flights is
-#: below this (rad; 0.27 ms at 30 Hz, five samples at 20 kHz): the data must repeat at
-#: one step or more where the final model repeats at REPEAT_MIN_STEPS or more
-#: (:func:`repeat_reason`).
+#: below this (rad; 0.27 ms at 30 Hz): the model's steps that do are its periodic orbits.
 REPEAT_TOL = 0.05
 REPEAT_MIN_STEPS = 3
+
+#: Where the final model repeats at REPEAT_MIN_STEPS steps or more, the data's median
+#: repeat over those steps must stay below this (rad; 0.11 ms at 30 Hz) or below
+#: REPEAT_DATA_SAMPLES samples of the recording, whichever is larger (a flight read off
+#: hard edges is whole samples long), else the flights are scattered by something no
+#: library effect is (:func:`repeat_reason`).
+REPEAT_DATA_TOL = 0.02
+REPEAT_DATA_SAMPLES = 2.5
 
 #: An offset within this (rad) of pi or pi/2 is named as a likely wiring of the drive
 #: reference (:func:`phase_shift_reason`), with the correction for ``run.yaml``.
@@ -165,9 +172,10 @@ def worth_a_retry(result: dict) -> bool:
     0.46 floors), where a retry doubled the time and never changed the verdict
     (docs/diagnosis-log.md, session 59).
 
-    Why not where the data never repeat: no other search makes them repeat, and any
-    fitted model settles on periodic orbits somewhere.  Blind ``ool_vibration``, at
-    2.79 +- 0.29 floors, took 293 s with a retry for 139 s without (session 72).
+    Why not where the data do not repeat where the model does: no other search makes
+    them repeat, and any fitted model settles on periodic orbits somewhere.  Blind
+    ``ool_vibration``, at 2.79 +- 0.29 floors, took 293 s with a retry for 139 s
+    without (session 72).
     """
     margin = result.get("verdict_margin") or {}
     enough = int(margin.get("n_heldout") or 0) >= FEW_HELDOUT
@@ -641,7 +649,7 @@ def diagnose_flights(
     phase_reason = phase_shift_reason(phase_final)
     if phase_reason:
         reasons.append(phase_reason)
-    repeat = repeat_check(cmp_final)
+    repeat = repeat_check(cmp_final, resolution_T(run, samples=1.0))
     scatter = repeat_reason(repeat)
     if scatter:
         reasons.append(scatter)
@@ -879,15 +887,18 @@ def sharp_phase_offset(problem: Problem, cmp: dict) -> dict:
     }
 
 
-def repeat_check(cmp: dict) -> dict:
+def repeat_check(cmp: dict, sample_rad: float = 0.0) -> dict:
     """How closely the data's flights repeat where the model's do.
 
-    ``cmp`` is :func:`compare_features` of the data and the final model.  A step's
+    ``cmp`` is :func:`compare_features` of the data and the final model; ``sample_rad``
+    one sample of the recording in radians of drive phase (``2 pi f / fs``).  A step's
     repeat is the least median ``|T[n+p] - T[n]|`` over periods ``p`` of 1-8 flights
     (:func:`bouncelab.gap.features.repeat_error`, rad).  Returns ``{"model_periodic":
     steps where the model repeats within REPEAT_TOL, "data_least": the least repeat of the
     data over all its steps (rad, None without one), "data_median": the data's median
-    repeat over the model's periodic steps (rad, None without them)}``.
+    repeat over the model's periodic steps (rad, None without them), "data_tol": the
+    most that median may be (rad): REPEAT_DATA_TOL or REPEAT_DATA_SAMPLES samples,
+    whichever is larger}``.
     """
     ps = cmp["per_step"]
     rep_d = ps["repeat_data"].to_numpy(dtype=np.float64)
@@ -898,6 +909,7 @@ def repeat_check(cmp: dict) -> dict:
         "model_periodic": int(np.count_nonzero(periodic)),
         "data_least": float(np.min(rep_d[valued])) if valued.any() else None,
         "data_median": float(np.median(rep_d[periodic])) if periodic.any() else None,
+        "data_tol": max(REPEAT_DATA_TOL, REPEAT_DATA_SAMPLES * float(sample_rad)),
     }
 
 
@@ -906,23 +918,25 @@ def repeat_reason(check: dict) -> str | None:
 
     ``check`` is :func:`repeat_check`.  Every library effect is deterministic: where its
     model settles on a periodic orbit, its flights repeat to within the timing noise,
-    and so do a rig's with that effect: the data's least repeat over the steps is at most
-    0.00097 rad (5 us at 30 Hz) on each of the 124 blind, independent and compliant
-    cases without plate vibration and on the shipped sweeps (0.043 rad on the shipped
-    ``raw/accel_g2-4``, five chaotic steps).  A random force (plate vibration, a noisy
-    drive) shakes every orbit: the data then repeat at no step (least 0.059-0.39 rad on
-    the four cases with it), while the fitted model repeats at many.  The rule
-    speaks when the model repeats within ``REPEAT_TOL`` at ``REPEAT_MIN_STEPS`` steps or
-    more and the data repeat within it at none.
+    and so do a rig's with that effect: at the periodic steps of the true model, or of
+    the fitted one, the data's median repeat is at most one sample (0.0094 rad at 30 Hz
+    and 20 kHz) on every blind, independent and compliant case without plate vibration
+    (docs/diagnosis.md, section 1).  A random force (plate vibration, a noisy drive)
+    shakes every orbit: 0.019-0.64 rad from 1 to 30 um of vibration.  The rule speaks
+    when the model repeats within ``REPEAT_TOL`` at ``REPEAT_MIN_STEPS`` steps or more
+    and the data's median repeat over those steps is ``data_tol`` or more.
     """
-    least = check["data_least"]
-    if check["model_periodic"] < REPEAT_MIN_STEPS or least is None or least < REPEAT_TOL:
+    median = check.get("data_median")
+    tol = float(check.get("data_tol", REPEAT_DATA_TOL))
+    if check["model_periodic"] < REPEAT_MIN_STEPS or median is None or median < tol:
         return None
+    least = check["data_least"]
     return (
-        f"the flights never repeat: the final model's repeat within {REPEAT_TOL:g} rad at "
-        f"{check['model_periodic']} steps (periodic orbits), the data's at none (least "
-        f"{least:.3g} rad, median {check['data_median']:.3g} over those steps): a random "
-        "force such as plate vibration, which no library effect is"
+        f"the flights do not repeat where the model's do: the final model's repeat within "
+        f"{REPEAT_TOL:g} rad at {check['model_periodic']} steps (periodic orbits), the "
+        f"data's median repeat over those steps {median:.3g} rad (limit {tol:.3g}; least "
+        f"over all steps {least:.3g}): a random force such as plate vibration, which no "
+        "library effect is"
     )
 
 

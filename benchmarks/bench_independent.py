@@ -160,6 +160,9 @@ CASES = {
     "vibration_weak_35hz": {
         "f": 35.0, "vib_rms": 1.5e-6, "g0": 0.5, "g1": 4.5, "dg": 0.1, "seed": 76,
     },
+    # ... beside a library effect, which must still be found
+    "restitution_vibration": {"e": 0.4, "vib_rms": 3e-6, "seed": 77},
+    "friction_vibration": {"mu": 0.2, "vib_rms": 2e-6, "seed": 78},
     "friction_delay": {"mu": 0.2, "delay_s": 0.001, "seed": 106},
     # protocols a lab may run that none above does: the steps in a random order (no state
     # carried from a neighbouring Gamma), a Gamma range never stepped, a fast and a slow

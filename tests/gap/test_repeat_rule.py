@@ -77,6 +77,18 @@ def test_a_weak_random_force_is_named_too():
     assert repeat_reason(check) is not None
 
 
+def test_a_raised_limit_silences_the_rule():
+    """``SelectSettings.repeat_limit`` (``--repeat-limit``): the 0.03 rad scatter named at
+    the default 0.02 rad is accepted under a limit of 0.05 (a lab that knows its rig
+    scatters that much)."""
+    data = periodic_table(LEVELS, GAMMAS, noise=0.03, seed=0)
+    sim = periodic_table(LEVELS, GAMMAS, noise=0.0, seed=100)
+    cmp = compare_features(data, sim)
+    assert repeat_reason(repeat_check(cmp)) is not None
+    raised = repeat_check(cmp, limit=0.05)
+    assert raised["data_tol"] == 0.05 and repeat_reason(raised) is None
+
+
 def test_the_limit_is_in_samples_of_a_coarse_recording():
     """A flight read off hard edges is whole samples long, so the limit is
     REPEAT_DATA_SAMPLES samples where they are longer than REPEAT_DATA_TOL: the same

@@ -34,6 +34,7 @@ rule diagnose:
         seed=config["diagnosis"]["seed"],
         check_seeds=config["diagnosis"]["check_seeds"],
         retries=config["diagnosis"]["retries"],
+        repeat_limit=config["diagnosis"]["repeat_limit_rad"],
         fix_accel=lambda wc: (
             "--fix-accel"
             if config["diagnosis"]["fix_accel"] and wc.run in ACCEL_G_RUNS
@@ -42,7 +43,8 @@ rule diagnose:
     shell:
         "bouncelab diagnose {params.run_dir:q} --flights {input.flights:q} "
         "{params.calibration} --baseline {params.baseline} --seed {params.seed} "
-        "--check-seeds {params.check_seeds} --retries {params.retries} {params.fix_accel} "
+        "--check-seeds {params.check_seeds} --retries {params.retries} "
+        "--repeat-limit {params.repeat_limit} {params.fix_accel} "
         "--workers {threads} -o {output:q} > {log:q} 2>&1"
 
 

@@ -72,6 +72,16 @@ def add_parser(sub) -> None:
         "never; not with --check-seeds)",
     )
     p.add_argument(
+        "--repeat-limit",
+        type=float,
+        default=None,
+        metavar="RAD",
+        help="name the run unexplained (a random force) when its flights, in the median "
+        "over the steps where the final model's flights repeat, repeat by this much or more "
+        "(radians of drive phase, or 2.5 samples where that is more; default 0.02; a rig "
+        "whose flights scatter for a cause it accepts can raise it)",
+    )
+    p.add_argument(
         "--timings",
         action="store_true",
         help="add wall-clock timings (not deterministic): the whole command, each seed's "
@@ -83,6 +93,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from bouncelab.gap.diagnose import diagnose_run
     from bouncelab.gap.seeds import RETRIES, retry_warning, seed_warning
+    from bouncelab.gap.select import SelectSettings
     from bouncelab.physics import Model
 
     out = Path(args.output)
@@ -97,6 +108,8 @@ def run(args) -> int:
         raise BouncelabError(None, f"--check-seeds must be >= 1, not {args.check_seeds}")
     if args.retries is not None and args.retries < 0:
         raise BouncelabError(None, f"--retries must be >= 0, not {args.retries}")
+    if args.repeat_limit is not None and not args.repeat_limit > 0:
+        raise BouncelabError(None, f"--repeat-limit must be > 0 rad, not {args.repeat_limit}")
     if args.fix_calibration and not args.calibration:
         raise BouncelabError(None, "--fix-calibration needs --calibration CAL.json")
     Model.parse(args.baseline)  # a bad model name is bad input: one error line
@@ -112,6 +125,9 @@ def run(args) -> int:
         check_seeds=args.check_seeds,
         retries=RETRIES if args.retries is None else args.retries,
         fix_accel=args.fix_accel,
+        select_settings=(
+            None if args.repeat_limit is None else SelectSettings(repeat_limit=args.repeat_limit)
+        ),
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")

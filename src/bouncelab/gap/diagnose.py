@@ -96,11 +96,12 @@ REPEAT_TOL = 0.05
 REPEAT_MIN_STEPS = 3
 
 #: Where the final model repeats at REPEAT_MIN_STEPS steps or more, the data's median
-#: repeat over those steps must stay below this (rad; 0.11 ms at 30 Hz) or below
-#: REPEAT_DATA_SAMPLES samples of the recording, whichever is larger (a flight read off
-#: hard edges is whole samples long), else the flights are scattered by something no
-#: library effect is (:func:`repeat_reason`).
-REPEAT_DATA_TOL = 0.02
+#: repeat over those steps must stay below this (rad; 0.11 ms at 30 Hz; the default of
+#: ``SelectSettings.repeat_limit``) or below REPEAT_DATA_SAMPLES samples of the
+#: recording, whichever is larger (a flight read off hard edges is whole samples long),
+#: else the flights are scattered by something no library effect is
+#: (:func:`repeat_reason`).
+REPEAT_DATA_TOL = SelectSettings.repeat_limit
 REPEAT_DATA_SAMPLES = 2.5
 
 #: An offset within this (rad) of pi or pi/2 is named as a likely wiring of the drive
@@ -649,7 +650,7 @@ def diagnose_flights(
     phase_reason = phase_shift_reason(phase_final)
     if phase_reason:
         reasons.append(phase_reason)
-    repeat = repeat_check(cmp_final, resolution_T(run, samples=1.0))
+    repeat = repeat_check(cmp_final, resolution_T(run, samples=1.0), select_settings.repeat_limit)
     scatter = repeat_reason(repeat)
     if scatter:
         reasons.append(scatter)
@@ -818,6 +819,7 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
             "min_shrink": select_settings.min_shrink,
             "explained_ratio": select_settings.explained_ratio,
             "unexplained_ratio": select_settings.unexplained_ratio,
+            "repeat_limit": select_settings.repeat_limit,
             "max_effects": select_settings.max_effects,
             "settled_ratio": select_settings.settled_ratio,
             "phase_tol": PHASE_TOL,
@@ -887,18 +889,20 @@ def sharp_phase_offset(problem: Problem, cmp: dict) -> dict:
     }
 
 
-def repeat_check(cmp: dict, sample_rad: float = 0.0) -> dict:
+def repeat_check(cmp: dict, sample_rad: float = 0.0, limit: float = REPEAT_DATA_TOL) -> dict:
     """How closely the data's flights repeat where the model's do.
 
     ``cmp`` is :func:`compare_features` of the data and the final model; ``sample_rad``
-    one sample of the recording in radians of drive phase (``2 pi f / fs``).  A step's
+    one sample of the recording in radians of drive phase (``2 pi f / fs``); ``limit``
+    the median repeat (rad) that names a random force (``SelectSettings.repeat_limit``).
+    A step's
     repeat is the least median ``|T[n+p] - T[n]|`` over periods ``p`` of 1-8 flights
     (:func:`bouncelab.gap.features.repeat_error`, rad).  Returns ``{"model_periodic":
     steps where the model repeats within REPEAT_TOL, "data_least": the least repeat of the
     data over all its steps (rad, None without one), "data_median": the data's median
     repeat over the model's periodic steps (rad, None without them), "data_tol": the
-    most that median may be (rad): REPEAT_DATA_TOL or REPEAT_DATA_SAMPLES samples,
-    whichever is larger}``.
+    most that median may be (rad): ``limit`` or REPEAT_DATA_SAMPLES samples, whichever
+    is larger}``.
     """
     ps = cmp["per_step"]
     rep_d = ps["repeat_data"].to_numpy(dtype=np.float64)
@@ -909,7 +913,7 @@ def repeat_check(cmp: dict, sample_rad: float = 0.0) -> dict:
         "model_periodic": int(np.count_nonzero(periodic)),
         "data_least": float(np.min(rep_d[valued])) if valued.any() else None,
         "data_median": float(np.median(rep_d[periodic])) if periodic.any() else None,
-        "data_tol": max(REPEAT_DATA_TOL, REPEAT_DATA_SAMPLES * float(sample_rad)),
+        "data_tol": max(float(limit), REPEAT_DATA_SAMPLES * float(sample_rad)),
     }
 
 

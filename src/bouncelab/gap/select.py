@@ -164,6 +164,12 @@ class SelectSettings:
         constant amplitude factor, a Gamma miscalibration with three parameters; on the
         development case ``gamma_scale_a`` it came out 0.013 floors ahead of
         ``gamma_scale`` (0.130 against 0.143), a difference the data cannot make.
+    repeat_limit : rad; the final model's periodic steps whose data repeat, in the median,
+        by this much or more (or by 2.5 samples, where that is more) name the run
+        unexplained: a random force (``gap.diagnose.repeat_reason``). 0.02 is five times
+        the most any generated case without plate vibration showed (one sample, 0.0094
+        rad); a rig whose flights scatter more for a cause it accepts can raise it (a
+        large value turns the rule off).
     """
 
     margin: float = 0.25
@@ -176,6 +182,7 @@ class SelectSettings:
     strict_ratio: float = 1.0
     strict_shrink: float = 0.5
     box_ratio: float = 1.5
+    repeat_limit: float = 0.02
 
 
 def pick_addition(scored: list[tuple[str, float, int]], tie: float) -> int:

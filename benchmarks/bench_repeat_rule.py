@@ -63,8 +63,8 @@ def model_of(effects: dict, ride_load: float | None = None) -> Model:
 
 
 def repeats(run_dir: Path, model: Model) -> dict:
-    """Per-step repeats of the data and of ``model`` under the run's protocol, as the
-    diagnosis reads them, and the rule's check."""
+    """Per-step repeats (rad) of the data and of ``model`` under the run's protocol, as
+    the diagnosis reads them, and one sample of the recording (rad)."""
     run = load_run(run_dir)
     table, qc = extract_run(run_dir)
     fs = FitSettings()
@@ -100,7 +100,8 @@ def cached(path: Path, run_dir: Path, model: Model) -> dict:
 
 
 def blind_cases(work: Path):
-    """(name, run folder, true effects, outside, record's selected, record's params)."""
+    """Each blind case: (name, run folder, true library effects, outside effects, the
+    record's (selected, fitted parameters) or None)."""
     from bouncelab.gap.blind import load_cases, make_case, true_effects
     from bouncelab.rig import read_truth
 
@@ -113,6 +114,7 @@ def blind_cases(work: Path):
 
 
 def generator_cases(work: Path, generator: str):
+    """Each case of ``bench_independent.py``'s ``generator``, as :func:`blind_cases`."""
     cases, make, stem = GENERATORS[generator]
     record = json.loads((RESULTS / f"{stem}.json").read_text())["cases"]
     for name, opts in cases.items():

@@ -166,7 +166,7 @@ class SelectSettings:
         ``gamma_scale`` (0.130 against 0.143), a difference the data cannot make.
     repeat_limit : rad; the final model's periodic steps whose data repeat, in the median,
         by this much or more (or by 2.5 samples, where that is more) name the run
-        unexplained: a random force (``gap.diagnose.repeat_reason``). 0.02 is five times
+        unexplained: a random force (``gap.diagnose.repeat_reason``). 0.02 is twice
         the most any generated case without plate vibration showed (one sample, 0.0094
         rad); a rig whose flights scatter more for a cause it accepts can raise it (a
         large value turns the rule off).

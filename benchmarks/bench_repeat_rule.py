@@ -42,7 +42,8 @@ from bouncelab.gap.diagnose import (  # noqa: E402
     repeat_reason,
 )
 from bouncelab.gap.fit import FitSettings, make_problem, resolution_T  # noqa: E402
-from bouncelab.physics.model import EFFECT_ORDER, Model  # noqa: E402
+from bouncelab.gap.select import model_name  # noqa: E402
+from bouncelab.physics.model import Model  # noqa: E402
 from bouncelab.runs import load_run  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,14 +53,12 @@ OUT = RESULTS / "repeat_rule.json"
 
 def model_of(effects: dict, ride_load: float | None = None) -> Model:
     """A model from ``effect -> params`` (the truth's or a record's, merged)."""
-    if not effects:
-        return Model.parse("ideal")
     params: dict = {}
     for ps in effects.values():
         params.update(ps)
     if "feedback" in effects and ride_load is not None:
         params.setdefault("ride_load", ride_load)
-    return Model.parse("+".join(e for e in EFFECT_ORDER if e in effects), params)
+    return Model.parse(model_name(effects), params)
 
 
 def repeats(run_dir: Path, model: Model) -> dict:

@@ -156,8 +156,8 @@ def worth_a_retry(result: dict) -> bool:
     """Whether a diagnosis (the dict of :func:`diagnose_flights`) is run again with the
     next seed (``retries`` of :func:`diagnose_run`): it left the gap unexplained, its
     verdict rests on at least :data:`FEW_HELDOUT` held-out steps, its held-out gap is
-    not clearly above the limit (:func:`clearly_over`), and its flights repeat somewhere
-    (:func:`repeat_reason`).
+    not clearly above the limit (:func:`clearly_over`), and its flights repeat where the
+    model's do (:func:`repeat_reason`).
 
     Why not with fewer steps: the retry trusts a second search that explains the run, and
     on so few steps that is one more draw of the lottery. The shipped ``raw/accel_g2-4``
@@ -895,9 +895,8 @@ def repeat_check(cmp: dict, sample_rad: float = 0.0, limit: float = REPEAT_DATA_
     ``cmp`` is :func:`compare_features` of the data and the final model; ``sample_rad``
     one sample of the recording in radians of drive phase (``2 pi f / fs``); ``limit``
     the median repeat (rad) that names a random force (``SelectSettings.repeat_limit``).
-    A step's
-    repeat is the least median ``|T[n+p] - T[n]|`` over periods ``p`` of 1-8 flights
-    (:func:`bouncelab.gap.features.repeat_error`, rad).  Returns ``{"model_periodic":
+    A step's repeat is the least median ``|T[n+p] - T[n]|`` over periods ``p`` of 1-8
+    flights (:func:`bouncelab.gap.features.repeat_error`, rad).  Returns ``{"model_periodic":
     steps where the model repeats within REPEAT_TOL, "data_least": the least repeat of the
     data over all its steps (rad, None without one), "data_median": the data's median
     repeat over the model's periodic steps (rad, None without them), "data_tol": the

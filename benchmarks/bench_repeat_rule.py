@@ -40,6 +40,7 @@ from bouncelab.gap.diagnose import (  # noqa: E402
     _features,
     repeat_check,
     repeat_reason,
+    shifted_repeats,
 )
 from bouncelab.gap.fit import FitSettings, make_problem, resolution_T  # noqa: E402
 from bouncelab.gap.select import model_name  # noqa: E402
@@ -76,6 +77,7 @@ def repeats(run_dir: Path, model: Model) -> dict:
         "sample_rad": resolution_T(run, samples=1.0),
         "repeat_data": ps["repeat_data"].tolist(),
         "repeat_sim": ps["repeat_sim"].tolist(),
+        "repeat_sim_shifted": shifted_repeats(problem, model).tolist(),
     }
 
 
@@ -83,7 +85,7 @@ def check_of(rec: dict) -> dict:
     """The rule's :func:`repeat_check` of kept per-step repeats, with the median's ratio
     to its limit and whether the rule names the run."""
     per_step = pd.DataFrame({k: rec[k] for k in ("repeat_data", "repeat_sim")}, dtype=float)
-    c = repeat_check({"per_step": per_step}, rec["sample_rad"])
+    c = repeat_check({"per_step": per_step}, rec["sample_rad"], shifted=rec["repeat_sim_shifted"])
     ratio = c["data_median"] / c["data_tol"] if c["data_median"] is not None else None
     return c | {"ratio": ratio, "named": repeat_reason(c) is not None}
 
@@ -168,7 +170,7 @@ def main() -> None:
                 for n, r in group.items()
                 if key in r
                 and r[key]["ratio"] is not None
-                and r[key]["model_periodic"] >= REPEAT_MIN_STEPS
+                and r[key]["model_robust"] >= REPEAT_MIN_STEPS
             ]
             return fn(vals) if vals else None
 

@@ -140,3 +140,21 @@ def test_the_median_over_the_model_s_periodic_steps_decides(repeating, named):
     check = repeat_check(compare_features(data, sim))
     assert check["data_least"] < REPEAT_TOL
     assert (repeat_reason(check) is not None) == named
+
+
+@pytest.mark.parametrize("robust,named", [(2, False), (3, True)])
+def test_only_periodic_steps_that_a_shift_of_gamma_keeps_speak(robust, named):
+    """A chaotic band where the fitted model sits in a periodic window: the model repeats
+    at all 10 steps and the data scatter at all, but the shifted simulations
+    (``shifted``) repeat at only ``robust`` of them (NaN: no flights there). Below
+    REPEAT_MIN_STEPS such steps the rule abstains; ``model_periodic`` is unchanged."""
+    data = periodic_table(LEVELS, GAMMAS, noise=0.2, seed=6)
+    sim = periodic_table(LEVELS, GAMMAS, noise=0.0, seed=7)
+    shifted = np.full((2, len(LEVELS)), 1.0)
+    shifted[:, :robust] = 0.0
+    shifted[1, robust] = np.nan  # one shift without flights: not periodic either
+    check = repeat_check(compare_features(data, sim), shifted=shifted)
+    assert check["model_periodic"] == len(LEVELS)
+    assert check["model_robust"] == robust
+    assert (repeat_reason(check) is not None) == named
+    assert repeat_reason(repeat_check(compare_features(data, sim))) is not None

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from diag_synth import GAMMAS, duration_s, pseudo_flights, write_run
+from diag_synth import duration_s, pseudo_flights, write_run
 
 from bouncelab.gap.diagnose import (
     REPEAT_MIN_STEPS,
     REPEAT_ROBUST_GAMMA,
     REPEAT_TOL,
     _features,
+    random_force_rule,
     repeat_check,
     repeat_reason,
     shifted_repeats,
@@ -64,3 +65,19 @@ def test_a_step_whose_shift_falls_below_takeoff_is_not_robust(problem):
     assert robust["model_robust"] <= plain["model_periodic"] - np.count_nonzero(low)
     # the pseudo-data repeat where the model does (its own flights): nothing to name
     assert repeat_reason(robust) is None
+
+
+def test_the_random_force_rule_is_offered_only_where_the_data_repeat_nowhere(tmp_path):
+    """``random_force_rule``: None on the pseudo-data (the ideal ball's own flights, 0.005
+    rad of timing noise: they repeat at every periodic step); with 1 rad of noise they
+    repeat at no step within 2.5 samples of the placeholder recording (0.236 rad at 2 kHz),
+    and the rule it returns names the ideal model's periodic steps."""
+    run_dir = write_run(tmp_path)
+    run = load_run(run_dir)
+    clean = make_problem(run, pseudo_flights(run_dir, IDEAL, seed=7), duration_s(), n_members=2)
+    assert random_force_rule(clean) is None
+    noisy_flights = pseudo_flights(run_dir, IDEAL, seed=7, noise_rad=1.0)
+    noisy = make_problem(run, noisy_flights, duration_s(), n_members=2)
+    rule = random_force_rule(noisy)
+    assert rule is not None
+    assert "the flights do not repeat" in rule(IDEAL)

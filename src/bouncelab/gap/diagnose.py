@@ -31,7 +31,7 @@ from bouncelab.flights.accel import (
 )
 from bouncelab.flights.armature import armature_from_accel
 from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
-from bouncelab.gap.features import circular_mean, compare_features, wrap_angle
+from bouncelab.gap.features import circular_mean, compare_features, features, wrap_angle
 from bouncelab.gap.fit import (
     DATA_RESOLUTION,
     K_CHOICES,
@@ -551,6 +551,7 @@ def diagnose_flights(
         interval=lambda fit, prob, i: summary_of(fit, prob, i)["params_ci"],
         harmonic_read=harmonic_read,
         refuted=refuted,
+        random_force=random_force_rule(problem, select_settings.repeat_limit),
     )
     base_fit: FitResult = sel["baseline"]
     g_base = heldout_gap(base_fit, problem)
@@ -912,6 +913,32 @@ def shifted_repeats(problem: Problem, model: Model, rel: float = REPEAT_ROBUST_G
     )
 
 
+def random_force_rule(problem: Problem, limit: float = REPEAT_DATA_TOL):
+    """The repeat rule as ``forward_select``'s ``random_force`` (``model -> reason | None``),
+    or None where the data's flights repeat at some step.
+
+    Why only where they repeat nowhere: a random force shakes every orbit, while an
+    in-library run repeats at its periodic steps, and the model of an early round, one
+    effect short, can be periodic where its data are not. The independent
+    ``friction_restitution_high_e`` (mu 0.2, e 0.7) took restitution alone at 4.25
+    floors, periodic at 27 robust steps where the data's median repeat was 0.094 rad, and
+    would have stopped there with friction missed (docs/diagnosis-log.md, session 74);
+    its data repeat to 0.00003 rad at their best step, plate vibration's to 0.06-0.2 rad.
+    """
+    per_step = features(problem.data_table, name="data", steps=problem.steps)["per_step"]
+    rep = per_step["repeat"].to_numpy(dtype=np.float64)
+    rep = rep[np.isfinite(rep)]
+    if rep.size == 0 or rep.min() < repeat_data_tol(resolution_T(problem.run, 1.0), limit):
+        return None
+    return lambda model: repeat_reason(model_repeat_check(problem, model, limit=limit))
+
+
+def repeat_data_tol(sample_rad: float, limit: float = REPEAT_DATA_TOL) -> float:
+    """The most the data's median repeat may be (rad): ``limit`` or REPEAT_DATA_SAMPLES
+    samples of ``sample_rad``, whichever is larger (:func:`repeat_check`)."""
+    return max(float(limit), REPEAT_DATA_SAMPLES * float(sample_rad))
+
+
 def model_repeat_check(
     problem: Problem, model: Model, cmp: dict | None = None, limit: float = REPEAT_DATA_TOL
 ) -> dict:
@@ -960,7 +987,7 @@ def repeat_check(
         "model_robust": int(np.count_nonzero(robust)),
         "data_least": float(np.min(rep_d[valued])) if valued.any() else None,
         "data_median": float(np.median(rep_d[robust])) if robust.any() else None,
-        "data_tol": max(float(limit), REPEAT_DATA_SAMPLES * float(sample_rad)),
+        "data_tol": repeat_data_tol(sample_rad, limit),
     }
 
 

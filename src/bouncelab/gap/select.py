@@ -991,6 +991,7 @@ def forward_select(
     interval=None,
     harmonic_read: dict | None = None,
     refuted=None,
+    random_force=None,
 ) -> dict:
     """Forward selection from ``baseline`` over ``candidates`` (see the module docstring).
 
@@ -1041,6 +1042,15 @@ def forward_select(
         harmonic fitted to the flight times can stand in for the armature while the
         takeoff phases show no such plate (docs/diagnosis.md section 1, "A harmonic the
         takeoffs refuse").
+    random_force : ``model -> str | None``, the repeat rule on a model (the diagnosis
+        passes :func:`bouncelab.gap.diagnose.random_force_rule`: only where the data's
+        flights repeat at no step). After a round has taken an effect, while the held-out
+        gap is above
+        ``unexplained_ratio`` floors, a reason it names ends the selection (``stop``
+        ``random_force``): the data scatter where the model's orbits repeat, which no
+        further library effect removes, and later rounds fit the scatter (independent
+        ``vibration``: a harmonic, then an armature of mass ratio 0.45; docs/diagnosis.md
+        section 1, "A random force ends the selection").
 
     Returns
     -------
@@ -1122,6 +1132,14 @@ def forward_select(
         stop = "max_effects"
         while len(accepted) < settings.max_effects:
             g_cur = heldout_gap(current, problem)
+            if (
+                accepted
+                and random_force is not None
+                and g_cur > settings.unexplained_ratio * floor
+                and random_force(current.model)
+            ):
+                stop = "random_force"
+                break
             within = g_cur <= settings.explained_ratio * floor
             for_phases = bool(within and rounds and shows_more(current.model))
             if for_phases:

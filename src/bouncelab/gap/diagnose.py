@@ -928,7 +928,7 @@ def random_force_rule(problem: Problem, limit: float = REPEAT_DATA_TOL):
     per_step = features(problem.data_table, name="data", steps=problem.steps)["per_step"]
     rep = per_step["repeat"].to_numpy(dtype=np.float64)
     rep = rep[np.isfinite(rep)]
-    if rep.size == 0 or rep.min() < repeat_data_tol(resolution_T(problem.run, 1.0), limit):
+    if rep.size == 0 or rep.min() < repeat_data_tol(resolution_T(problem.run, samples=1.0), limit):
         return None
     return lambda model: repeat_reason(model_repeat_check(problem, model, limit=limit))
 

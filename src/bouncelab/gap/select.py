@@ -1045,12 +1045,11 @@ def forward_select(
     random_force : ``model -> str | None``, the repeat rule on a model (the diagnosis
         passes :func:`bouncelab.gap.diagnose.random_force_rule`: only where the data's
         flights repeat at no step). After a round has taken an effect, while the held-out
-        gap is above
-        ``unexplained_ratio`` floors, a reason it names ends the selection (``stop``
-        ``random_force``): the data scatter where the model's orbits repeat, which no
-        further library effect removes, and later rounds fit the scatter (independent
-        ``vibration``: a harmonic, then an armature of mass ratio 0.45; docs/diagnosis.md
-        section 1, "A random force ends the selection").
+        gap is above ``unexplained_ratio`` floors, a reason it names ends the selection
+        (``stop`` ``random_force``): the data scatter where the model's orbits repeat,
+        which no further library effect removes, and later rounds fit the scatter
+        (independent ``vibration``: a harmonic, then an armature of mass ratio 0.45;
+        docs/diagnosis.md section 1, "A random force ends the selection").
 
     Returns
     -------

@@ -48,6 +48,8 @@ from bouncelab.gap.fit import (
     bootstrap_params,
     continuation_gamma,
     fit_warnings,
+    flat_directions,
+    flat_warnings,
     intervals,
     make_problem,
     member_model,
@@ -57,6 +59,7 @@ from bouncelab.gap.fit import (
     problem_cycles,
     resolution_T,
     too_few_steps,
+    warned_params,
 )
 from bouncelab.gap.regions import segment_regions
 from bouncelab.gap.seeds import (
@@ -399,16 +402,24 @@ def _fit_summary(fit: FitResult, problem: Problem, seed: int, n_boot: int) -> di
     draw of the orbit lottery), or within :data:`bouncelab.gap.fit.DATA_RESOLUTION`
     noise floors when that is more (what the data cannot resolve). The bootstrap alone
     was too narrow on the seed-like blind cases: mu [0.20, 0.25] for a true 0.29, where
-    the objective at the truth lies within its own noise of the best.
+    the objective at the truth lies within its own noise of the best. A parameter that
+    :func:`bouncelab.gap.fit.flat_directions` can move by 15 % within the same tolerance
+    is warned about too (:func:`bouncelab.gap.fit.flat_warnings`).
     """
     boot = bootstrap_params(fit, problem, n_boot=n_boot, seed=seed)
     noise = objective_noise(fit, problem)
-    resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
-    near = noise_intervals(fit, problem, max(NOISE_SIGMAS * noise, resolution))
+    unit = problem.mean(problem.floor, problem.fit)
+    tolerance = max(NOISE_SIGMAS * noise, DATA_RESOLUTION * unit)
+    near = noise_intervals(fit, problem, tolerance)
     ci = intervals(fit, boot)
     for name, (lo, hi) in near.items():
         ci[name] = [min(ci[name][0], lo), max(ci[name][1], hi)]
-    warnings = fit_warnings(fit, boot) + poorly_identified(fit, ci)
+    loose = poorly_identified(fit, ci)
+    # a parameter the searched points pin but a probe 15 % away shows loose (the probes
+    # are not part of the interval, which the selection's drop rule reads)
+    flat = flat_directions(fit, problem, tolerance)
+    flat = {k: v for k, v in flat.items() if k not in warned_params(loose)}
+    warnings = fit_warnings(fit, boot) + loose + flat_warnings(fit, flat, unit, tolerance)
     for name, value in fit.model.params.items():
         ci.setdefault(name, [float(value), float(value)])  # fixed: a point
     return {"params_ci": dict(sorted(ci.items())), "warnings": warnings, "objective_noise": noise}

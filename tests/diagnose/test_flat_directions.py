@@ -1,0 +1,95 @@
+"""The one-parameter probes of a fit (:func:`bouncelab.gap.fit.flat_directions`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bouncelab.gap import fit as fitmod
+from bouncelab.gap.fit import (
+    FitResult,
+    flat_directions,
+    flat_warnings,
+    free_params,
+    warned_params,
+)
+from bouncelab.physics import Model
+
+
+class _Problem:
+    """What the probes read of a problem: the fit steps and their mean."""
+
+    fit = np.array([True, True, False])
+
+    def mean(self, values, mask):
+        return float(np.mean(np.asarray(values)[mask]))
+
+
+def _scripted(monkeypatch, objective):
+    """step_gaps replaced by ``objective(params)`` (rad) on every step; the calls kept."""
+    calls = []
+
+    def fake(problem, model, buffer=None, shift=0.0):
+        calls.append(dict(model.params))
+        return np.full(3, objective(model.params))
+
+    monkeypatch.setattr(fitmod, "step_gaps", fake)
+    return calls
+
+
+def _fit(name: str, params: dict, objective: float) -> FitResult:
+    model = Model.parse(name, params)
+    free = free_params(model.effects)
+    return FitResult(model, free, objective, np.zeros(3), np.empty((0, len(free))),
+                     np.empty((0, 3)), 0, 0.0)  # fmt: skip
+
+
+def test_a_parameter_the_objective_ignores_is_listed_and_a_steep_one_is_not(monkeypatch):
+    # the gap grows 1 rad per unit of relative mu error and not at all with zeta
+    _scripted(monkeypatch, lambda p: 0.5 + abs(p["mu"] / 0.2 - 1.0))
+    params = {"mu": 0.2, "mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1, "ride_load": 0.0}
+    base = 0.5
+    flat = flat_directions(_fit("friction+feedback", params, base), _Problem(), tolerance=0.05)
+    assert set(flat) == {"mass_ratio", "f_ratio", "zeta"}
+    assert [v for v, _ in flat["zeta"]] == pytest.approx([0.085, 0.115])
+    assert all(rise == pytest.approx(0.0) for _, rise in flat["zeta"])
+    # a looser tolerance than the 0.15 rad of a 15 % move of mu lists it too
+    assert "mu" in flat_directions(_fit("friction+feedback", params, base), _Problem(), 0.2)
+
+
+def test_probes_stay_within_the_bounds_and_skip_choices_phases_and_nulls(monkeypatch):
+    calls = _scripted(monkeypatch, lambda p: 1.0)
+    # mass_ratio near its upper bound 0.5: 15 % more is cut to 4 %, not probed
+    params = {"mass_ratio": 0.48, "f_ratio": 0.6, "zeta": 0.1, "ride_load": 1.0}
+    flat = flat_directions(_fit("feedback", params, 1.0), _Problem(), tolerance=0.01)
+    assert flat["mass_ratio"] == [(pytest.approx(0.408), 0.0)]
+    assert {c["ride_load"] for c in calls} == {1.0}  # a choice is never moved
+    calls.clear()
+    harmonic = {"k": 2.0, "a": 0.05, "psi": 1.0}
+    flat = flat_directions(_fit("harmonic", harmonic, 1.0), _Problem(), tolerance=0.01)
+    assert set(flat) == {"a"}
+    assert {c["psi"] for c in calls} == {1.0} and {c["k"] for c in calls} == {2.0}
+    calls.clear()
+    assert flat_directions(_fit("friction", {"mu": 0.0}, 1.0), _Problem(), 0.01) == {}
+    assert calls == []  # nothing to move at a null value
+
+
+def test_a_probe_that_does_better_than_the_fit_is_listed_with_its_negative_rise(monkeypatch):
+    def objective(p):  # less damping does better; every other move does worse
+        steep = abs(p["mass_ratio"] / 0.05 - 1.0) + abs(p["f_ratio"] / 0.6 - 1.0)
+        return steep + (0.3 if p["zeta"] < 0.1 else 0.4 if p["zeta"] == 0.1 else 1.0)
+
+    _scripted(monkeypatch, objective)
+    params = {"mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1, "ride_load": 0.0}
+    flat = flat_directions(_fit("feedback", params, 0.4), _Problem(), tolerance=0.0)
+    assert flat == {"zeta": [(pytest.approx(0.085), pytest.approx(-0.1))]}
+
+
+def test_the_warning_names_the_parameter_the_move_and_the_rise_in_floors():
+    fit = _fit("feedback", {"mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1222}, 0.4)
+    lines = flat_warnings(fit, {"zeta": [(0.1405, 0.012), (0.1039, 0.003)]}, 0.05, 0.006)
+    assert lines == [
+        "zeta=0.1222 is poorly identified: at 0.1039 (-15 %, the others held) the fit "
+        "steps' gap is +0.06 noise floors from the best, within what the data resolve (0.12)"
+    ]
+    assert warned_params(lines) == {"zeta"}

@@ -20,7 +20,9 @@ from bouncelab.gap.diagnose import (
     REPEAT_DATA_TOL,
     REPEAT_MIN_STEPS,
     REPEAT_TOL,
+    no_repeat_warning,
     repeat_check,
+    repeat_data_tol,
     repeat_reason,
 )
 from bouncelab.gap.features import repeat_error
@@ -158,3 +160,14 @@ def test_only_periodic_steps_that_a_shift_of_gamma_keeps_speak(robust, named):
     assert check["model_robust"] == robust
     assert (repeat_reason(check) is not None) == named
     assert repeat_reason(repeat_check(compare_features(data, sim))) is not None
+
+
+def test_an_explained_run_whose_flights_repeat_nowhere_is_warned_about():
+    tol = repeat_data_tol(0.0094)
+    # the data repeat at one step at least: silent, whatever the other steps do
+    assert no_repeat_warning({"data_least": 0.004, "data_tol": tol}) is None
+    assert no_repeat_warning({"data_least": None, "data_tol": tol}) is None  # no step to read
+    line = no_repeat_warning({"data_least": 0.145, "data_tol": tol})
+    assert line is not None and "repeat at no step" in line and "0.145" in line
+    # the edge counts as no repeat, as the random force's stop reads it
+    assert no_repeat_warning({"data_least": tol, "data_tol": tol}) is not None

@@ -20,10 +20,16 @@ another ensemble's.)
 case); the runs are made again under ``WORK`` with the generator's cases (reused when
 there). ``--blind BLIND_OUT`` is a blind validation's folder (``runs/``, ``diagnoses/``,
 ``truth/``). Scores, per scored parameter: its relative error (the generators' scoring),
-warned before (the stored warnings) and after (with the probes' lines). Prints a line per
-case (``*``: a parameter the probes newly warn about) and the counts (misses warned, unwarned values within 15 %); writes
-``benchmarks/results/flat_probes_<set>.json`` (or ``--record``). Reads the truth, so it is
-a benchmark of the diagnosis, never part of it. About 10-40 s a case on 2 cores.
+warned before (the stored warnings) and after (with the new lines). Prints a line per
+case (``*``: a parameter newly warned about) and the counts (misses warned, unwarned
+values within 15 %); writes ``benchmarks/results/flat_probes_<set>.json`` (or
+``--record``). Reads the truth, so it is a benchmark of the diagnosis, never part of it.
+About 5-20 s a case on 2 cores.
+
+The warnings from the selection's own fits of more effects
+(:func:`bouncelab.gap.diagnose.superset_warnings`, also session 75) are replayed beside
+the probes: they need no simulation, only the stored rounds (each fit's model and
+held-out gap) and the final model.
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from bouncelab.flights import extract_run
+from bouncelab.gap.diagnose import superset_warnings
 from bouncelab.gap.fit import (
     DATA_RESOLUTION,
     NOISE_SIGMAS,
@@ -49,6 +56,7 @@ from bouncelab.gap.fit import (
     make_problem,
     objective_noise,
     step_gaps,
+    warned_params,
 )
 from bouncelab.physics.model import Model
 from bouncelab.runs import load_run
@@ -108,7 +116,30 @@ def probe_lines(run_dir: Path, diagnosis: dict) -> tuple[list[str], dict]:
         if (m := _INTERVAL_LOOSE.match(line))
     }
     flat = {k: v for k, v in flat_directions(fit, problem, tolerance).items() if k not in loose}
-    return flat_warnings(fit, flat, unit, tolerance), checks
+    lines = flat_warnings(fit, flat, unit, tolerance)
+    return lines + stored_superset_lines(diagnosis, lines), checks
+
+
+def stored_superset_lines(diagnosis: dict, lines: list[str]) -> list[str]:
+    """:func:`superset_warnings` on a stored diagnosis's rounds (``lines``: those the
+    probes add; the parameters warned already are left out, as the diagnosis does)."""
+    floor = float(diagnosis["noise_floor"])
+    final = diagnosis["final_model"]
+    tried = [
+        (Model.parse(c["model"], c["params"]), float(c["gap"]))
+        for tried in diagnosis.get("rounds") or []
+        for c in tried
+    ]
+    warned = warned_params(diagnosis["steps"][-1]["warnings"] + lines)
+    margin = float(diagnosis["design"]["stop_rule"]["margin_floors"])
+    return superset_warnings(
+        Model.parse(final["model"], final["params"]),
+        float(diagnosis["final_gap"]),
+        tried,
+        floor,
+        margin,
+        warned,
+    )
 
 
 def with_lines(diagnosis: dict, lines: list[str]) -> dict:

@@ -93,3 +93,34 @@ def test_the_warning_names_the_parameter_the_move_and_the_rise_in_floors():
         "steps' gap is +0.06 noise floors from the best, within what the data resolve (0.12)"
     ]
     assert warned_params(lines) == {"zeta"}
+
+
+def test_a_fit_of_more_effects_as_good_as_the_final_one_warns_of_its_other_values():
+    from bouncelab.gap.diagnose import superset_warnings
+
+    final = Model.parse(
+        "restitution+feedback",
+        {"e": 0.478, "f_ratio": 0.273, "mass_ratio": 0.077, "zeta": 0.188, "ride_load": 0.0},
+    )
+    floor = 0.05
+    wider = {"e": 0.47, "f_ratio": 0.567, "mass_ratio": 0.059, "zeta": 0.2, "ride_load": 1.0}
+    tried = [
+        # the final model itself, far off: not a superset
+        (Model.parse("restitution+feedback", {**wider, "f_ratio": 2.0}), 0.01),
+        # a superset beyond the margin: ignored
+        (Model.parse("friction+restitution+feedback", {**wider, "mu": 0.1, "e": 0.2}), 0.10),
+        # supersets within the margin: the least gap of them speaks for each parameter
+        (Model.parse("restitution+harmonic+feedback", {**wider, "a": 0.02, "k": 2.0, "psi": 1.0}),
+         0.044),
+        (Model.parse("restitution+feedback+gamma_scale", {**wider, "f_ratio": 0.9, "s": 1.0}),
+         0.055),
+    ]  # fmt: skip
+    lines = superset_warnings(final, 0.049, tried, floor, margin=0.25)
+    assert warned_params(lines) == {"f_ratio", "mass_ratio"}  # e and zeta within 15 %
+    f_line = next(line for line in lines if line.startswith("f_ratio"))
+    assert "restitution+harmonic+feedback" in f_line and "0.567" in f_line and "0.88" in f_line
+    # a parameter warned about already gets no second line; nothing wider, nothing said
+    assert warned_params(superset_warnings(final, 0.049, tried, floor, 0.25, {"f_ratio"})) == {
+        "mass_ratio"
+    }
+    assert superset_warnings(final, 0.049, tried[:2], floor, 0.25) == []

@@ -33,11 +33,14 @@ from bouncelab.flights.armature import armature_from_accel
 from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
 from bouncelab.gap.features import circular_mean, compare_features, features, wrap_angle
 from bouncelab.gap.fit import (
+    CHOICES,
     DATA_RESOLUTION,
     K_CHOICES,
     MEMBER_SPREAD,
     MIN_FLOOR,
     NOISE_SIGMAS,
+    PERIODIC,
+    PROBE_SHARE,
     REFINE_DRAWS,
     RIDE_LOAD_CHOICES,
     FitResult,
@@ -254,6 +257,49 @@ def alternative_warnings(alternative: dict | None, floor: float) -> list[str]:
     return [
         f"{name}={v:.4g} is poorly identified: {why} with {name} {w:.4g}"
         for name, (v, w) in alternative["moved"].items()
+    ]
+
+
+def superset_warnings(
+    final: Model,
+    g_final: float,
+    tried: list[tuple[Model, float]],
+    floor: float,
+    margin: float,
+    warned=(),
+) -> list[str]:
+    """The final step's warnings from the selection's own fits of more effects: a fit
+    whose model holds every effect of ``final`` and more, within ``margin`` noise floors
+    of its held-out gap (or below it), that puts a continuous parameter of ``final`` more
+    than :data:`bouncelab.gap.fit.PROBE_SHARE` (15 %) away from its value. One line per
+    parameter (the fit of least held-out gap among those), in the form
+    :func:`bouncelab.gap.fit.warned_params` reads; none for a parameter in ``warned``.
+
+    ``g_final``: the final model's held-out gap (rad); ``tried``: ``(model, held-out gap
+    in rad)`` of every fit of the selection's rounds; ``floor``: rad.
+    Why: the selection refused those additions because they gained less than its margin,
+    so by its own rule they fit the data as well; their values of the shared parameters
+    are as plausible. The independent ``restitution_feedback`` (true f_ratio 0.6,
+    mass_ratio 0.05) was reported at f_ratio 0.273 and mass_ratio 0.077 (0.98 floors),
+    unwarned, while the last round's restitution + harmonic + armature reached 0.88
+    floors with 0.567 and 0.059 (docs/diagnosis-log.md, session 75).
+    """
+    effects = set(final.effects)
+    best: dict[str, tuple[float, float, str]] = {}
+    for model, g in tried:
+        if not effects < set(model.effects) or g > g_final + margin * floor:
+            continue
+        for name, v in final.params.items():
+            if name in CHOICES or name in PERIODIC or name in warned or v == 0.0:
+                continue
+            w = float(model.params[name])
+            if abs(w / v - 1.0) > PROBE_SHARE and (name not in best or g < best[name][0]):
+                best[name] = (g, w, model.name)
+    return [
+        f"{name}={float(final.params[name]):.4g} is poorly identified: {model} fits the "
+        f"flight times as well ({g / floor:.3g} noise floors held out against "
+        f"{g_final / floor:.3g}) with {name} {w:.4g}"
+        for name, (g, w, model) in best.items()
     ]
 
 
@@ -611,6 +657,15 @@ def diagnose_flights(
 
     alternative = sel["armature_alternative"]
     lines = alternative_warnings(alternative, floor)
+    if sel["accepted"]:
+        lines += superset_warnings(
+            sel["final"].model,
+            heldout_gap(sel["final"], problem),
+            [(f.model, heldout_gap(f, problem)) for tried in sel["rounds"] for _e, f in tried],
+            floor,
+            select_settings.margin,
+            warned_params(steps[-1]["warnings"] + lines),
+        )
     if lines:  # (a new list: the step's own is its cached summary's)
         steps[-1]["warnings"] = [*steps[-1]["warnings"], *lines]
         warnings += [step_warning(steps[-1]["model"], line) for line in lines]

@@ -44,7 +44,6 @@ from pathlib import Path
 
 import numpy as np
 
-from bouncelab.flights import extract_run
 from bouncelab.gap.diagnose import superset_warnings
 from bouncelab.gap.fit import (
     DATA_RESOLUTION,
@@ -53,13 +52,11 @@ from bouncelab.gap.fit import (
     flat_directions,
     flat_warnings,
     free_params,
-    make_problem,
     objective_noise,
     step_gaps,
     warned_params,
 )
 from bouncelab.physics.model import Model
-from bouncelab.runs import load_run
 
 RESULTS = Path(__file__).resolve().parent / "results"
 MATCH_RAD = 1e-9  # the rebuilt objective's noise against the stored one
@@ -71,17 +68,10 @@ def rebuilt_final(run_dir: Path, diagnosis: dict) -> tuple[FitResult, object, di
     """The final step's fit as the diagnosis had it (no cloud: the probes need none), its
     problem, and the checks ``{"objective_rad", "stored_rad", "noise_rad",
     "stored_noise_rad", "match"}``."""
+    from bench_truth_vs_fit import diagnosis_problem
+
     design = diagnosis["design"]
-    run = load_run(run_dir)
-    table, qc = extract_run(run_dir)
-    problem = make_problem(
-        run,
-        table,
-        float(qc["t_end_s"].max()),
-        seed=int(design["seed"]),
-        n_members=int(design["n_members"]),
-        heldout_every=int(design["heldout_every"]),
-    )
+    problem = diagnosis_problem(run_dir, design)
     refine, box = design.get("refine"), design.get("box") or {}
     if refine and not box.get("kept"):  # the refined fit's own averaged objective
         problem = replace(problem, n_draws=int(refine["n_draws"]))

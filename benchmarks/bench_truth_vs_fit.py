@@ -129,14 +129,13 @@ def independent_case(work: Path, name: str, workers: int) -> tuple[dict, dict]:
     return independent_true_params(truth["effects"]), errors
 
 
-def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
-    """The record of one case (see the module docstring)."""
-    run_dir = out / "runs" / name
-    diagnosis = json.loads((out / "diagnoses" / f"{name}.json").read_text())
-    design = diagnosis["design"]
+def diagnosis_problem(run_dir: Path, design: dict):
+    """The problem a diagnosis of ``run_dir`` fitted on, rebuilt from its ``design``
+    (seed, ensemble members, held-out steps; the flights extracted again): one draw per
+    evaluation, before any refinement's."""
     run = load_run(run_dir)
     table, qc = extract_run(run_dir)
-    problem = make_problem(
+    return make_problem(
         run,
         table,
         float(qc["t_end_s"].max()),
@@ -144,6 +143,14 @@ def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
         n_members=int(design["n_members"]),
         heldout_every=int(design["heldout_every"]),
     )
+
+
+def compare_case(out: Path, name: str, true_params: dict, draws: int) -> dict:
+    """The record of one case (see the module docstring)."""
+    run_dir = out / "runs" / name
+    diagnosis = json.loads((out / "diagnoses" / f"{name}.json").read_text())
+    design = diagnosis["design"]
+    problem = diagnosis_problem(run_dir, design)
     refine = design.get("refine") or {}
     problem = replace(problem, n_draws=int(refine.get("n_draws", 1)))
     final = diagnosis["final_model"]

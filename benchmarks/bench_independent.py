@@ -145,6 +145,18 @@ CASES = {
     "friction_restitution_lost_contacts_gamma_read": {
         "mu": 0.2, "e": 0.4, "g1": 5.0, "lost_contacts": 0.03, "gamma_read_sd": 0.01, "seed": 124,
     },
+    # a body that sticks when its impacts get slow (session 76), as simulators end the
+    # chatter: once its next flight would be shorter than 1.5 contact times (the
+    # data's flights end at 150 us where 48 kHz resolves 42 us; read as the chatter's
+    # floor), or once its rebound is slower than 10 mm/s (not read: flagged)
+    "friction_restitution_sticky": {
+        "f": 22.0, "fs": 48000.0, "g0": 1.2, "g1": 6.0, "dg": 0.3, "step_s": 90 / 22.0,
+        "mu": 0.25, "e": 0.35, "contact_s": 3e-4, "stick_flight_s": 4.5e-4, "seed": 31,
+    },
+    "restitution_sticky_speed": {
+        "f": 28.0, "g0": 0.8, "g1": 3.2, "dg": 0.1, "step_s": 1.2, "t0": 0.23, "e": 0.45,
+        "stick_v": 1e-2, "seed": 21,
+    },
     # outside the library: each should come out unexplained
     "vdep_restitution": {
         "e": 0.4, "e_slope": 0.4, "g0": 1.0, "g1": 3.5, "dg": 0.1, "step_s": 1.33, "seed": 71,

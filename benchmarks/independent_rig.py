@@ -5,8 +5,11 @@ recordings made elsewhere. This generator makes them differently on purpose, so 
 what the diagnosis assumes of our rig shows up:
 
 - hard contact: instantaneous impacts (restitution ``e``), a body that sticks once its
-  rebound is slower than ``stick_v``; the continuity circuit stays closed ``contact_s``
-  after every impact (a real impact lasts tens to hundreds of microseconds);
+  rebound is slower than ``stick_v``, or (``stick_flight_s`` > 0, a simulator's
+  sticking threshold) once its next flight, predicted with the plate's acceleration
+  held, would be shorter than ``stick_flight_s``; the continuity circuit stays closed
+  ``contact_s`` after every impact (a real impact lasts tens to hundreds of
+  microseconds);
 - fixed-step integration (``dt`` = 2 us) of flight under gravity and Coulomb friction,
   the armature propagated exactly over each step;
 - Gamma switched instantly at each step's ``t_s``, wherever the drive phase is (``t0``
@@ -52,7 +55,7 @@ LOST_CONTACT_MAX_S = 3e-3
 @numba.njit(cache=True)
 def integrate(
     t_end, dt, w, amp_t, amp_v, mu, e, hk, ha, hpsi, mass_ratio, f_ratio, zeta, contact_s,
-    stick_v, fs, step, e_slope, e_ref_v, vib_w, vib_a, vib_phi,
+    stick_v, stick_flight_s, fs, step, e_slope, e_ref_v, vib_w, vib_a, vib_phi,
 ):  # fmt: skip
     """Contact state (1.0 closed) at each sample instant ``k / fs``, shape (n,), and the
     number of impacts. SI units; ``amp_t``/``amp_v``: the plate amplitude (m) from each
@@ -133,7 +136,15 @@ def integrate(
                 zd1 += mass_ratio * (1.0 + e_u) * v_rel  # the impact's momentum kicks the armature
                 y = xp1
                 rebound = -e_u * v_rel
-                if rebound < stick_v:
+                # the next flight with the plate's acceleration held: up against gravity
+                # and friction relative to the plate, then down to it
+                c_up = G * (1.0 + mu) + ap
+                c_down = G * (1.0 - mu) + ap
+                short = False
+                if stick_flight_s > 0.0 and c_up > 0.0 and c_down > 0.0:
+                    flight = rebound / c_up + rebound / math.sqrt(c_up * c_down)
+                    short = flight < stick_flight_s
+                if rebound < stick_v or short:
                     riding = True
                 else:
                     v = vp1 + rebound
@@ -202,8 +213,8 @@ def make_case(out: Path, **opt) -> dict:
     amp_v = np.concatenate([[0.0], o["s"] * gammas * G / w**2])
     contact, impacts = integrate(
         t_end, o["dt"], w, amp_t, amp_v, o["mu"], o["e"], o["k"], o["a"], o["psi"],
-        o["mass_ratio"], o["f_ratio"], o["zeta"], o["contact_s"], o["stick_v"], o["fs"],
-        armature_step(o["f_ratio"] * w, o["zeta"], o["dt"]),
+        o["mass_ratio"], o["f_ratio"], o["zeta"], o["contact_s"], o["stick_v"],
+        o["stick_flight_s"], o["fs"], armature_step(o["f_ratio"] * w, o["zeta"], o["dt"]),
         o["e_slope"], o["e_ref_v"], *vibration(o["vib_rms"], o["seed"]),
     )  # fmt: skip
     n_lost = 0
@@ -302,7 +313,8 @@ DEFAULTS = {
     "step_jitter": 0.0, "t0": 0.0,
     "mu": 0.0, "e": 0.0, "k": 3.0, "a": 0.0, "psi": 0.0, "s": 1.0,
     "mass_ratio": 0.0, "f_ratio": 0.6, "zeta": 0.05,
-    "contact_s": 8e-5, "stick_v": 2e-4, "noise_v": 0.02, "delay_s": 0.0,
+    "contact_s": 8e-5, "stick_v": 2e-4, "stick_flight_s": 0.0, "noise_v": 0.02,
+    "delay_s": 0.0,
     "contact_high": False, "format": "wav", "seed": 1, "dt": 2e-6,
     "descending": False, "up_down": False, "no_drive": False,
     "e_slope": 0.0, "e_ref_v": 0.3, "vib_rms": 0.0,

@@ -15,7 +15,7 @@ import pandas as pd
 
 from bouncelab.errors import BouncelabError
 from bouncelab.physics import Model, simulate_protocol
-from bouncelab.physics.simulate import seen_flights
+from bouncelab.physics.simulate import CHATTER_EPS, seen_flights
 from bouncelab.runs import Run, step_table
 
 TWO_PI = 2.0 * math.pi
@@ -48,6 +48,7 @@ def simulate_run(
     n_starts: int = 1,
     seed: int = 0,
     min_contact: float = 0.0,
+    chatter_eps: float = CHATTER_EPS,
 ) -> pd.DataFrame:
     """The model under the run's protocol, as a flight table like the measured one.
 
@@ -60,6 +61,8 @@ def simulate_run(
     seed : seed of the start phases.
     min_contact : rad; > 0: the flights as a continuity circuit shows them when every
         contact lasts at least that long (:func:`bouncelab.physics.simulate.seen_flights`).
+    chatter_eps : rad; a chatter sequence ends once its next flight would be shorter
+        (:func:`bouncelab.physics.simulate.simulate_protocol`).
 
     Returns
     -------
@@ -79,6 +82,7 @@ def simulate_run(
         settle_cycles=int(run.settle_cycles),
         seed=seed,
         n_starts=n_starts,
+        chatter_eps=chatter_eps,
     )
     sim = seen_flights(sim, min_contact)
     # phase at which each model step starts, to put flights on the recording's clock

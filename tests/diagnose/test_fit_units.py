@@ -20,6 +20,7 @@ from bouncelab.gap.fit import (
     FitResult,
     bootstrap_params,
     box_around,
+    chatter_floor_T,
     decode,
     encode,
     fit_warnings,
@@ -30,6 +31,7 @@ from bouncelab.gap.fit import (
     min_contact_T,
     noise_intervals,
     poorly_identified,
+    resolution_T,
     warned_params,
 )
 from bouncelab.physics import EFFECTS, Model
@@ -709,6 +711,55 @@ def test_min_contact_of_a_contact_sampled_at_instants_is_its_mean():
     contacts = np.concatenate([contacts, rng.uniform(2e-3, 2e-2, 200)])
     got = min_contact_T(_Rate(), _contact_table(rng.permutation(contacts)))
     assert got == pytest.approx(2 * np.pi * 30.0 * 8e-5, rel=0.05)
+
+
+def _bounce_table(flights_s, contact_s=1e-4, gamma=2.0, step=0):
+    """A flight table of one settled step of flights ``flights_s`` (s), each starting
+    ``contact_s`` after the landing before it (a bouncing body), T at a 30 Hz drive."""
+    t, rows = 0.0, []
+    for f in flights_s:
+        rows.append({"step": step, "gamma": gamma, "settled": True, "t_takeoff_s": t,
+                     "t_landing_s": t + f, "T": 2 * np.pi * 30.0 * f})  # fmt: skip
+        t += f + contact_s
+    return pd.DataFrame(rows)
+
+
+def test_the_chatter_floor_binds_where_a_bouncing_body_shows_no_short_flight():
+    """Reference: the definition. A bouncing body (every flight 100 us after the last
+    landing) whose flights reach down to 400 us, four times the two samples of 100 us
+    that 20 kHz resolves (min_T 0.01885 rad at 30 Hz): the comparison starts at 0.9 of
+    the third shortest flight."""
+    rng = np.random.default_rng(2)
+    flights = np.concatenate([[4e-4, 4.1e-4, 4.2e-4], rng.uniform(5e-4, 2e-2, 300)])
+    table = _bounce_table(rng.permutation(flights))
+    min_T = resolution_T(_Rate())
+    assert min_T == pytest.approx(2 * np.pi * 30.0 * 1e-4)
+    got = chatter_floor_T(_Rate(), table, min_T, 2 * np.pi * 30.0 * 1e-4)
+    assert got == pytest.approx(0.9 * 2 * np.pi * 30.0 * 4.2e-4)
+
+
+@pytest.mark.parametrize(
+    "flights_s, contact_s, why",
+    [
+        (np.geomspace(1e-4, 2e-2, 300), 1e-4, "flights down to what the recording resolves"),
+        (np.geomspace(4e-4, 2e-2, 300), 5e-3, "an inelastic body: rides between the flights"),
+        (np.geomspace(4e-4, 2e-2, 60), 1e-4, "too few flights to read a floor"),
+        (np.geomspace(1.5e-4, 2e-2, 300), 1e-4, "a floor under twice min_T"),
+    ],
+)
+def test_the_chatter_floor_keeps_min_t_otherwise(flights_s, contact_s, why):
+    table = _bounce_table(flights_s, contact_s=contact_s)
+    min_T = resolution_T(_Rate())
+    assert chatter_floor_T(_Rate(), table, min_T, 0.0) == min_T, why
+
+
+def test_the_chatter_floor_reads_only_settled_flights_above_gamma_one():
+    """Short flights below Gamma 1 or unsettled do not hold the floor down."""
+    table = _bounce_table(np.geomspace(4e-4, 2e-2, 300))
+    short = _bounce_table([1e-4] * 20, gamma=0.9, step=1)
+    min_T = resolution_T(_Rate())
+    got = chatter_floor_T(_Rate(), pd.concat([table, short], ignore_index=True), min_T, 0.0)
+    assert got > min_T
 
 
 def armature_last_round(monkeypatch, fake_fit_many) -> dict:
@@ -1430,6 +1481,79 @@ def test_a_middle_effect_whose_refined_interval_reaches_its_null_value_is_droppe
         ]
         assert calls[-1] == "friction+harmonic"  # refitted without the miscalibration
         assert sel["accepted"][-1][1] is sel["final"]
+
+
+@pytest.mark.parametrize("s_interval, kept", [((0.9968, 1.0004), False), ((0.92, 0.94), True)])
+def test_a_first_effect_whose_refined_interval_reaches_its_null_value_is_dropped(
+    monkeypatch, s_interval, kept
+):
+    """Reference: a scripted selection (floor 1), the shape of an independent friction
+    and restitution whose chatter ends early (session 76). Round 1 takes a Gamma
+    miscalibration standing in for both (10 -> 7.7), round 2 restitution beside it
+    (-> 4.7), round 3 friction (-> 0.8) with s back at 0.9985. With the miscalibration's
+    interval in the final model reaching s = 1 it is dropped though it came first: the
+    final model is refitted without it (0.3) and the first step is restitution's round-1
+    fit alone; with an interval clear of the band all three are kept."""
+    from bouncelab.gap import select
+
+    calls = []
+    table = {
+        "ideal": (10.0, {}),
+        "gamma_scale": (7.7, {"s": 1.18}),
+        "restitution": (8.7, {"e": 0.41}),
+        "friction": (8.6, {"mu": 0.1}),
+        "restitution+gamma_scale": (4.7, {"e": 0.31, "s": 0.93}),
+        "friction+gamma_scale": (7.7, {"mu": 0.19, "s": 1.28}),
+        "friction+restitution+gamma_scale": (0.8, {"e": 0.35, "mu": 0.23, "s": 0.9985}),
+        "friction+restitution": (5.0, {"e": 0.35, "mu": 0.25}),
+    }
+    scripted = armature_table_fit_many(table, calls)
+
+    def fit_many(jobs, *args, **kwargs):
+        fits = scripted(jobs, *args, **kwargs)
+        for (_p, name, _b, _f, search, *_r), fit in zip(jobs, fits, strict=True):
+            if name == "friction+restitution" and search == ():  # the local refit without s
+                fit.objective = 0.3
+        return fits
+
+    script_selection(monkeypatch, fit_many)
+    ci = {"s": list(s_interval), "e": [0.34, 0.36], "mu": [0.24, 0.26]}
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["gamma_scale", "restitution", "friction"],
+        interval=lambda fit, problem, i: ci,
+    )  # fmt: skip
+    taken = [e for e, _f in sel["accepted"]]
+    if kept:
+        assert taken == ["gamma_scale", "restitution", "friction"]
+        assert sel["weak_dropped"] == [] and sel["final"].objective == 0.8
+    else:
+        assert taken == ["restitution", "friction"] and sel["final"].objective == 0.3
+        assert sel["weak_dropped"] == [
+            {"effect": "gamma_scale", "param": "s", "interval": list(s_interval)}
+        ]
+        assert sel["accepted"][0][1].model.name == "restitution"  # its round-1 fit alone
+        assert sel["accepted"][-1][1] is sel["final"]
+
+
+def test_the_first_effect_stays_where_every_effect_reaches_its_null_value(monkeypatch):
+    """Reference: a scripted selection (floor 1): restitution (10 -> 5), then a harmonic
+    (-> 1.0), both intervals reaching their null values: the later one is dropped, the
+    first stays (a selection is never emptied this way)."""
+    from bouncelab.gap import select
+
+    calls = []
+    table = {
+        "ideal": (10.0, {}),
+        "restitution": (5.0, {"e": 0.3}),
+        "restitution+harmonic": (1.0, {"e": 0.3, "a": 0.008, "k": 2.0, "psi": 0.7}),
+    }
+    script_selection(monkeypatch, armature_table_fit_many(table, calls))
+    sel = select.forward_select(
+        _OneStepProblem(), 1.0, candidates=["restitution", "harmonic"],
+        interval=lambda fit, problem, i: {"a": [0.0, 0.013], "e": [0.0, 0.4]},
+    )  # fmt: skip
+    assert [e for e, _f in sel["accepted"]] == ["restitution"]
+    assert [w["effect"] for w in sel["weak_dropped"]] == ["harmonic"]
 
 
 def test_no_pair_check_when_the_armature_is_not_alone(monkeypatch):

@@ -33,6 +33,7 @@ from bouncelab.flights.armature import armature_from_accel
 from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
 from bouncelab.gap.features import circular_mean, compare_features, features, wrap_angle
 from bouncelab.gap.fit import (
+    CHATTER_FLOOR_SHARE,
     CHOICES,
     DATA_RESOLUTION,
     K_CHOICES,
@@ -737,6 +738,9 @@ def diagnose_flights(
     nowhere = None if reasons else no_repeat_warning(repeat)
     if nowhere:
         warnings.append(nowhere)
+    short_cut = chatter_floor_warning(problem)
+    if short_cut:
+        warnings.insert(0, short_cut)
 
     regions = _regions(problem, base_fit.gaps, sel["accepted"], cmp_base, select_settings)
     out = {
@@ -880,7 +884,9 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
         # drive cycles one member of a fit simulates, and the longest step after the cut
         "fit_cycles": int(problem_cycles(problem)),
         "fit_step_cycles_max": int(problem.protocol["cycles"].max()),
+        # the shortest flight compared, rad: two samples or the data's chatter floor
         "min_T": problem.min_T,
+        "resolution_T": resolution_T(problem.run),
         # the data's shortest contact, the model's flights are read with (0: unresolved)
         "min_contact": problem.min_contact,
         "min_contact_s": problem.min_contact
@@ -1112,6 +1118,27 @@ def no_repeat_warning(check: dict) -> str | None:
         f"the flights repeat at no step (least repeat {least:.3g} rad, {tol:.3g} to count "
         "as one): every step is chaotic or shaken, where the flight times tell the "
         "effects apart weakly; the selected effects may stand in for others"
+    )
+
+
+def chatter_floor_warning(problem: Problem) -> str | None:
+    """A warning where the comparison starts above two samples, or None.
+
+    :func:`bouncelab.gap.fit.chatter_floor_T` raises ``problem.min_T`` where the data's
+    shortest flight lies well above what the recording resolves although the body
+    bounces: the model's chatter is ended there, and its shorter flights left out, so the
+    diagnosis no longer tests how the body's chatter ends. A user should know that.
+    """
+    resolved = resolution_T(problem.run)
+    if problem.min_T <= resolved:
+        return None
+    ms = 1e3 / (2.0 * math.pi * float(problem.run.drive_frequency_hz))
+    return (
+        f"the body bounces, but no flight is shorter than "
+        f"{problem.min_T / CHATTER_FLOOR_SHARE * ms:.3g} ms though the recording resolves "
+        f"{resolved * ms:.3g} ms: its chatter ends sooner than a constant restitution's "
+        f"(it sticks at low impact speed); the model's chatter is ended there and flights "
+        f"shorter than {problem.min_T * ms:.3g} ms are not compared"
     )
 
 

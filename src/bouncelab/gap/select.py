@@ -1017,16 +1017,22 @@ def forward_select(
         (:func:`_phase_pick`; ``phase_taken`` in the result).
     interval : ``(fit, problem, step index) -> {param: [lo, hi]}``, the intervals the
         diagnosis reports for a step (its ``params_ci``). With two or more effects
-        selected, every effect after the first whose strength's interval in the final
-        model, after the refinement, reaches its null value widened by the
-        :data:`INERT` tolerance is dropped and the final model refitted without it
-        (``weak_dropped`` in the result). Why: on the stored blind outputs of session 26
+        selected, every effect whose strength's interval in the final model, after the
+        refinement, reaches its null value widened by the :data:`INERT` tolerance is
+        dropped and the final model refitted without it (``weak_dropped`` in the
+        result); the first effect too where another stays, the new first step then
+        being that effect's round-1 fit alone. Why: on the stored blind outputs of session 26
         this separates the 4 spurious later effects from 51 true ones (a harmonic of a
         0.008 after restitution, a Gamma miscalibration of s 0.99); the round fits'
         intervals are too narrow to do it at selection time (docs/diagnosis-log.md,
         session 26). A spurious effect can sit in the middle of the selection (blind
         ``w_friction_harmonic`` at diagnosis seed 17: harmonic, s 0.995 with interval
-        [0.991, 1.003], then friction; session 50).
+        [0.991, 1.003], then friction; session 50), or first: where the data's chatter
+        ends early (:func:`bouncelab.gap.fit.chatter_floor_T`) a Gamma miscalibration
+        led round 1 of an independent friction and restitution (s 1.18, standing in for
+        both) and ended at s 0.9985 with interval [0.9968, 1.0004] beside them (session
+        76); on the 32 stored diagnoses of two or more effects no first effect's
+        interval reaches its null value.
     harmonic_read : the plate's harmonic read off the takeoff phases where one stands out
         (:func:`bouncelab.gap.takeoff_reading.seen_harmonic`: ``k, a, psi, mu``), or None.
         Every round's fit of a model with the harmonic starts from it where it does
@@ -1330,13 +1336,18 @@ def forward_select(
                 final_problem = problem
         weak = []
         if interval is not None and len(accepted) >= 2:
-            # a later effect whose refined interval reaches its null value: not an effect
+            # an effect whose refined interval reaches its null value: not an effect (the
+            # first one too, where another stays)
             ci = interval(current, final_problem, len(accepted) - 1)
-            for eff, _fit in accepted[1:]:
+            for eff, _fit in accepted:
                 name, null, tol = INERT[eff]
+                if name not in ci:  # held fixed (a calibration): not the data's to judge
+                    continue
                 lo, hi = ci[name]
                 if lo - tol <= null <= hi + tol:
                     weak.append({"effect": eff, "param": name, "interval": [float(lo), float(hi)]})
+            if len(weak) == len(accepted):  # the first stays where every one reaches it
+                weak = [w for w in weak if w["effect"] != accepted[0][0]]
             work.stage = "weak_dropped"
             for w in weak:
                 current = _without(
@@ -1344,8 +1355,13 @@ def forward_select(
                 )
             if weak:
                 dropped = {w["effect"] for w in weak}
-                accepted = [(e, f) for e, f in accepted if e not in dropped]
-                accepted[-1] = (accepted[-1][0], current)
+                kept = [(e, f) for e, f in accepted if e not in dropped]
+                alone = dict(rounds[0]) if rounds else {}
+                if accepted[0][0] in dropped and len(kept) > 1 and kept[0][0] in alone:
+                    # the new first step's fit held the dropped one: its round-1 fit alone
+                    kept[0] = (kept[0][0], alone[kept[0][0]])
+                kept[-1] = (kept[-1][0], current)
+                accepted = kept
         alternative = armature_alternative(
             accepted, (problem, fixed, fit_settings, seed), pool, progress, work, round1_armatures
         )

@@ -209,6 +209,7 @@ def simulate_protocol(
     seed: int = 0,
     n_starts: int = 1,
     phi_start=None,
+    chatter_eps: float = CHATTER_EPS,
 ) -> pd.DataFrame:
     """The lab protocol: Gamma steps with the state carried from one step to the next.
 
@@ -224,6 +225,9 @@ def simulate_protocol(
     flight the change of Gamma itself ends: the instant amplitude change jumps the
     plate's velocity and catches a body that took off just before it, a flight a real
     drive, whose amplitude changes over cycles, does not make).
+
+    ``chatter_eps`` (rad) ends a chatter sequence once its predicted flight is shorter
+    (default :data:`CHATTER_EPS`; docs/physics.md, "Chatter termination").
     """
     model = _check_model(model)
     g, step_end = _protocol_steps(gammas, cycles, settle_cycles)
@@ -233,10 +237,12 @@ def simulate_protocol(
     g_tr = model.gamma_true(g_st)
     hk, ha, hp = model.harmonic_arrays()
     max_rec = int(4 * step_end[-1] + 64)
+    par = kernel_params(model)
+    par[K.P_EPS] = float(chatter_eps)
     while True:
         out = np.empty((K.NCOL, ns * max_rec))
         rows, status = K.run_many(
-            kernel_params(model), hk, ha, hp, g_tr, g_st, step_end, True, starts,
+            par, hk, ha, hp, g_tr, g_st, step_end, True, starts,
             np.zeros(ns), np.zeros(ns), 0, max_rec, int(settle_cycles),
             np.arange(ns, dtype=float), out,
         )  # fmt: skip

@@ -530,8 +530,10 @@ def test_a_noiseless_objective_still_gets_the_data_resolution(monkeypatch):
             return float(np.mean(np.asarray(values)[mask]))
 
     monkeypatch.setattr(diagnose, "objective_noise", lambda fit, problem: 0.0)
-    # the fake problem cannot simulate the probes 15 % away (test_flat_directions.py)
-    monkeypatch.setattr(diagnose, "flat_directions", lambda fit, problem, tolerance: {})
+    # the fake problem cannot simulate the probes 15 % away nor the walk of a side at the
+    # fitted value (test_flat_directions.py)
+    monkeypatch.setattr(diagnose, "flat_directions", lambda fit, problem, tolerance, rise: {})
+    monkeypatch.setattr(diagnose, "edge_bounds", lambda fit, problem, ci, tolerance, rise: ci)
     gaps = [[0.25, 0.25], [0.1, 0.1], [0.14, 0.14], [0.5, 0.5]]
     fit = _fake_fit([0.1, 0.2, 0.3, 0.4], gaps)
     summary = diagnose._fit_summary(fit, _Floors(2), seed=0, n_boot=20)

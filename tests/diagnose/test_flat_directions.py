@@ -1,4 +1,5 @@
-"""The one-parameter probes of a fit (:func:`bouncelab.gap.fit.flat_directions`)."""
+"""The one-parameter probes of a fit (:func:`bouncelab.gap.fit.flat_directions`,
+:func:`bouncelab.gap.fit.edge_bounds`)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import pytest
 
 from bouncelab.gap import fit as fitmod
 from bouncelab.gap.fit import (
+    EDGE_SHARES,
     FitResult,
+    edge_bounds,
     flat_directions,
     flat_warnings,
     free_params,
@@ -83,6 +86,51 @@ def test_a_probe_that_does_better_than_the_fit_is_listed_with_its_negative_rise(
     params = {"mass_ratio": 0.05, "f_ratio": 0.6, "zeta": 0.1, "ride_load": 0.0}
     flat = flat_directions(_fit("feedback", params, 0.4), _Problem(), tolerance=0.0)
     assert flat == {"zeta": [(pytest.approx(0.085), pytest.approx(-0.1))]}
+
+
+def test_an_interval_side_at_the_fitted_value_is_walked_out_to_the_farthest_probe_within(
+    monkeypatch,
+):
+    # the gap rises 1 rad per unit of relative mu error: within 0.02 rad lie moves up to
+    # 2 %, so of the walk's moves (7.5, 3.75, 1.875 ... %) 1.875 % is the first within
+    calls = _scripted(monkeypatch, lambda p: 0.5 + abs(p["mu"] / 0.2 - 1.0))
+    fit = _fit("friction", {"mu": 0.2}, 0.5)
+    ci = edge_bounds(fit, _Problem(), {"mu": [0.2, 0.21]}, tolerance=0.02)
+    assert ci == {"mu": [pytest.approx(0.2 * (1 - 0.01875)), 0.21]}
+    # the fitted point once, then 7.5 %, 3.75 % and 1.875 % below it; the upper side,
+    # which the evaluated points reach, is not probed
+    assert [c["mu"] for c in calls] == pytest.approx([0.2, 0.185, 0.1925, 0.19625])
+    assert EDGE_SHARES[:3] == pytest.approx((0.075, 0.0375, 0.01875))
+
+
+def test_a_side_every_probe_resolves_stays_and_sides_off_the_value_are_left(monkeypatch):
+    calls = _scripted(monkeypatch, lambda p: 0.5 + 100.0 * abs(p["mu"] / 0.2 - 1.0))
+    fit = _fit("friction", {"mu": 0.2}, 0.5)
+    # a move of 0.23 % costs 0.23 rad: the side stays at the fitted value
+    assert edge_bounds(fit, _Problem(), {"mu": [0.2, 0.2]}, tolerance=0.1) == {"mu": [0.2, 0.2]}
+    assert len(calls) == 1 + 2 * len(EDGE_SHARES)
+    calls.clear()
+    assert edge_bounds(fit, _Problem(), {"mu": [0.19, 0.21]}, 0.1) == {"mu": [0.19, 0.21]}
+    assert calls == []  # neither side at the value: nothing simulated
+
+
+def test_the_walk_keeps_to_the_bounds_and_leaves_choices_phases_and_fixed_alone(monkeypatch):
+    calls = _scripted(monkeypatch, lambda p: 1.0)  # every move within any tolerance
+    params = {"mass_ratio": 0.5, "f_ratio": 0.6, "zeta": 0.1, "ride_load": 1.0}
+    ci = {"mass_ratio": [0.5, 0.5], "f_ratio": [0.55, 0.65], "zeta": [0.1, 0.12],
+          "ride_load": [1.0, 1.0]}  # fmt: skip
+    out = edge_bounds(_fit("feedback", params, 1.0), _Problem(), ci, tolerance=0.0)
+    # mass_ratio on its upper bound 0.5: only its lower side moves (7.5 % at once)
+    assert out["mass_ratio"] == [pytest.approx(0.4625), 0.5]
+    assert out["zeta"] == [pytest.approx(0.0925), 0.12]
+    assert out["f_ratio"] == [0.55, 0.65] and out["ride_load"] == [1.0, 1.0]
+    assert {c["ride_load"] for c in calls} == {1.0}
+    assert ci["zeta"] == [0.1, 0.12]  # the caller's dict untouched
+    calls.clear()
+    harmonic = _fit("harmonic", {"k": 2.0, "a": 0.05, "psi": 1.0}, 1.0)
+    out = edge_bounds(harmonic, _Problem(), {"k": [2, 2], "a": [0.05, 0.06], "psi": [1, 1]}, 0.0)
+    assert out["psi"] == [1, 1] and out["k"] == [2, 2]
+    assert {c["psi"] for c in calls} == {1.0}
 
 
 def test_the_warning_names_the_parameter_the_move_and_the_rise_in_floors():

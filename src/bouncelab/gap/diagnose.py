@@ -51,6 +51,7 @@ from bouncelab.gap.fit import (
     best_member_simulation,
     bootstrap_params,
     continuation_gamma,
+    edge_bounds,
     fit_warnings,
     flat_directions,
     flat_warnings,
@@ -60,6 +61,7 @@ from bouncelab.gap.fit import (
     noise_intervals,
     objective_noise,
     poorly_identified,
+    probe_rise,
     problem_cycles,
     resolution_T,
     too_few_steps,
@@ -461,10 +463,13 @@ def _fit_summary(fit: FitResult, problem: Problem, seed: int, n_boot: int) -> di
     ci = intervals(fit, boot)
     for name, (lo, hi) in near.items():
         ci[name] = [min(ci[name][0], lo), max(ci[name][1], hi)]
+    rise = probe_rise(fit, problem)
+    # a side no evaluated point within the tolerance reaches: walked out by probes
+    ci = edge_bounds(fit, problem, ci, tolerance, rise)
     loose = poorly_identified(fit, ci)
-    # a parameter the searched points pin but a probe 15 % away shows loose (the probes
-    # are not part of the interval, which the selection's drop rule reads)
-    flat = flat_directions(fit, problem, tolerance)
+    # a parameter the searched points pin but a probe 15 % away shows loose (the 15 %
+    # probes are not part of the interval, which the selection's drop rule reads)
+    flat = flat_directions(fit, problem, tolerance, rise=rise)
     flat = {k: v for k, v in flat.items() if k not in warned_params(loose)}
     warnings = fit_warnings(fit, boot) + loose + flat_warnings(fit, flat, unit, tolerance)
     for name, value in fit.model.params.items():

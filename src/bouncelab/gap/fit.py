@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
@@ -126,6 +127,15 @@ WIDE_SHARE = 0.3
 #: [0.115, 0.130] while zeta 15 % and 30 % lower cost 0.05 and 0.02 floors of the fit
 #: steps, and the truth lay at 0.04 (docs/diagnosis-log.md, session 75).
 PROBE_SHARE = 0.15
+
+#: Relative moves :func:`edge_bounds` walks inward, largest first, on a side of an
+#: interval that the evaluated points leave at the fitted value: half of
+#: :data:`PROBE_SHARE` down to about 0.25 %. Why: the bootstrap and the noise set read
+#: only the points the search evaluated; where none within the tolerance lies on one
+#: side of the best (the search came from the other), the side is reported as the fitted
+#: value itself, a precision nobody measured (independent ``friction_restitution_sticky``:
+#: e 0.3491 with interval [0.3491, 0.3500], mu 0.2489 with [0.2489, 0.2523]; session 77).
+EDGE_SHARES = tuple(PROBE_SHARE / 2.0**k for k in range(1, 7))
 
 #: A step's gap counts at most this many of its noise floors in every mean over steps
 #: (:meth:`Problem.clipped`).
@@ -1647,47 +1657,114 @@ def poorly_identified(fit: FitResult, ci: dict, share: float = WIDE_SHARE) -> li
     return out
 
 
-def flat_directions(
-    fit: FitResult, problem: Problem, tolerance: float, share: float = PROBE_SHARE
-) -> dict[str, list[tuple[float, float]]]:
-    """The moves of one parameter the data cannot resolve: ``{name: [(value, rise), ...]}``.
-
-    Each continuous, non-periodic fitted parameter is moved to ``(1 - share)`` and
-    ``(1 + share)`` of its fitted value (kept within its bounds; a side the bounds cut to
-    less than half the move is not probed), the others held, and the fit-step objective
-    (:meth:`Problem.mean` of :func:`step_gaps` over ``problem.fit``, the search's own
-    ensemble) evaluated there. Listed are the probes whose objective lies within
-    ``tolerance`` (rad) of the fitted point's, evaluated alike, with that rise (rad;
-    negative where the probe does better). A probe needs no refit of the others, so a
-    listed move is one the data surely leave open; an unlisted one may still be open
-    along a trade-off. Costs a simulation of the fitted point and two per parameter.
+def probe_rise(fit: FitResult, problem: Problem) -> Callable[[str, float], float]:
+    """``rise(name, value)``: the fit-step objective (rad; :meth:`Problem.mean` of
+    :func:`step_gaps` over ``problem.fit``, the search's own ensemble) of ``fit.model``
+    with the one parameter ``name`` moved to ``value``, the others held, less the fitted
+    point's, evaluated alike (once, at the first call); negative where the move does
+    better. Each call costs a simulation of the fit steps.
 
     Why the fitted point again rather than ``fit.objective``: a final fit's objective can
     be another ensemble's (the box refinement keeps its point by fresh draws, a refined
     fit is rechecked on others): on 4 of 21 stored diagnoses of session 75 it differed
     from the point's objective on ``problem`` by 0.1-2.5 %.
     """
+    buffer = OutputBuffer()
+    base: list[float] = []
+
+    def objective(model: Model) -> float:
+        return problem.mean(step_gaps(problem, model, buffer), problem.fit)
+
+    def rise(name: str, value: float) -> float:
+        if not base:
+            base.append(objective(fit.model))
+        return objective(fit.model.with_params(**{name: value})) - base[0]
+
+    return rise
+
+
+def _probed(fit: FitResult) -> list:
+    """The fitted parameters a one-parameter probe moves: continuous, not periodic,
+    fitted away from 0 (a relative move of 0 is none)."""
+    return [
+        p
+        for p in fit.free
+        if p.choices is None and p.name not in PERIODIC and float(fit.model.params[p.name]) != 0.0
+    ]
+
+
+def flat_directions(
+    fit: FitResult,
+    problem: Problem,
+    tolerance: float,
+    share: float = PROBE_SHARE,
+    rise: Callable[[str, float], float] | None = None,
+) -> dict[str, list[tuple[float, float]]]:
+    """The moves of one parameter the data cannot resolve: ``{name: [(value, rise), ...]}``.
+
+    Each continuous, non-periodic fitted parameter is moved to ``(1 - share)`` and
+    ``(1 + share)`` of its fitted value (kept within its bounds; a side the bounds cut to
+    less than half the move is not probed), the others held, and the fit-step objective
+    evaluated there (:func:`probe_rise`, or ``rise`` when given, to share its fitted
+    point). Listed are the probes whose objective lies within ``tolerance`` (rad) of the
+    fitted point's, with that rise (rad). A probe needs no refit of the others, so a
+    listed move is one the data surely leave open; an unlisted one may still be open
+    along a trade-off. Costs a simulation of the fitted point and two per parameter.
+    """
     out: dict[str, list[tuple[float, float]]] = {}
     if not problem.fit.any():
         return out
-    buffer = OutputBuffer()
-    base = None
-    for p in fit.free:
-        if p.choices is not None or p.name in PERIODIC:
-            continue
+    rise = rise or probe_rise(fit, problem)
+    for p in _probed(fit):
         v = float(fit.model.params[p.name])
-        if v == 0.0:
-            continue
         for side in (-1.0, 1.0):
             moved = min(max(v * (1.0 + side * share), p.lower), p.upper)
             if abs(moved - v) < 0.5 * share * abs(v):
                 continue
-            if base is None:
-                base = problem.mean(step_gaps(problem, fit.model, buffer), problem.fit)
-            model = fit.model.with_params(**{p.name: moved})
-            rise = problem.mean(step_gaps(problem, model, buffer), problem.fit) - base
-            if rise <= tolerance:
-                out.setdefault(p.name, []).append((float(moved), float(rise)))
+            up = rise(p.name, moved)
+            if up <= tolerance:
+                out.setdefault(p.name, []).append((float(moved), float(up)))
+    return out
+
+
+def edge_bounds(
+    fit: FitResult,
+    problem: Problem,
+    ci: dict,
+    tolerance: float,
+    rise: Callable[[str, float], float] | None = None,
+    shares: tuple[float, ...] = EDGE_SHARES,
+) -> dict[str, list[float]]:
+    """``ci`` with each side that sits at the fitted value moved out to the farthest
+    one-parameter probe within ``tolerance`` (rad) of the fitted point, ``{name: [lo,
+    hi]}`` (a new dict; other entries as they were).
+
+    A side of an interval from the evaluated points (:func:`intervals`,
+    :func:`noise_intervals`) sits at the fitted value where no point within the
+    tolerance lies on that side: the search came from the other, not a measured
+    precision. There the parameter is moved by each of ``shares`` of its value in turn,
+    largest first (:data:`EDGE_SHARES`, kept within its bounds), the others held
+    (:func:`probe_rise`), and the first move within the tolerance is the side's bound,
+    like a point of the noise set. Where none is, the side stays: the data resolve a
+    move of the smallest share. Continuous, non-periodic parameters fitted away from 0
+    only. Costs a simulation of the fitted point and up to ``len(shares)`` per side.
+    """
+    out = {name: list(bounds) for name, bounds in ci.items()}
+    if not problem.fit.any():
+        return out
+    rise = rise or probe_rise(fit, problem)
+    for p in _probed(fit):
+        if p.name not in out:
+            continue
+        v = float(fit.model.params[p.name])
+        for end, side in ((0, -1.0), (1, 1.0)):
+            if out[p.name][end] != v:
+                continue
+            for share in shares:
+                moved = float(min(max(v * (1.0 + side * share), p.lower), p.upper))
+                if moved != v and rise(p.name, moved) <= tolerance:
+                    out[p.name][end] = moved
+                    break
     return out
 
 

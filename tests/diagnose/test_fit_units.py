@@ -313,6 +313,44 @@ def armature_table_fit_many(table: dict, calls: list):
     return fake_fit_many
 
 
+def select_from_table(monkeypatch, table, candidates, ci, calls=None, refit=None) -> dict:
+    """A scripted selection (floor 1) over ``candidates``, each model's fit looked up in
+    ``table`` (:func:`armature_table_fit_many`; names fitted go to ``calls``), every
+    step's refined intervals ``ci``; ``refit``: ``(name, objective)`` of the final
+    model's local refit without a dropped effect (:func:`with_local_refit`)."""
+    from bouncelab.gap import select
+
+    fit_many = armature_table_fit_many(table, [] if calls is None else calls)
+    if refit is not None:
+        fit_many = with_local_refit(fit_many, *refit)
+    script_selection(monkeypatch, fit_many)
+    return select.forward_select(
+        _OneStepProblem(), 1.0, candidates=candidates, interval=lambda fit, problem, i: ci
+    )
+
+
+#: Restitution (10 -> 5), then a harmonic of a 0.008 beside it (-> 1.0).
+RESTITUTION_THEN_WEAK_HARMONIC = {
+    "ideal": (10.0, {}),
+    "restitution": (5.0, {"e": 0.3}),
+    "restitution+harmonic": (1.0, {"e": 0.3, "a": 0.008, "k": 2.0, "psi": 0.7}),
+}
+
+
+def with_local_refit(fit_many, name: str, objective: float):
+    """``fit_many`` with the local refit of ``name`` (a job searching nothing: the final
+    model refitted without a dropped effect) given ``objective``."""
+
+    def wrapped(jobs, *args, **kwargs):
+        fits = fit_many(jobs, *args, **kwargs)
+        for (_p, job_name, _b, _f, search, *_r), fit in zip(jobs, fits, strict=True):
+            if job_name == name and search == ():
+                fit.objective = objective
+        return fits
+
+    return wrapped
+
+
 def test_an_inert_addition_is_not_an_effect_but_its_refit_is_kept(monkeypatch):
     """Reference: a scripted selection (gaps in noise floors, held-out gap = objective).
     Round 1 takes restitution (10 -> 5). In round 2 friction at mu 0 "shrinks" the gap to
@@ -1410,18 +1448,11 @@ def test_a_later_effect_whose_refined_interval_reaches_its_null_value_is_dropped
     diagnosis seed 3) the harmonic is dropped, restitution refitted without it, and
     ``weak_dropped`` says why; with an interval clear of the null band (0.007 to 0.010,
     the band being a <= 0.0025) it is kept."""
-    from bouncelab.gap import select
 
     calls = []
-    table = {
-        "ideal": (10.0, {}),
-        "restitution": (5.0, {"e": 0.3}),
-        "restitution+harmonic": (1.0, {"e": 0.3, "a": 0.008, "k": 2.0, "psi": 0.7}),
-    }
-    script_selection(monkeypatch, armature_table_fit_many(table, calls))
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["restitution", "harmonic"],
-        interval=lambda fit, problem, i: {"a": list(a_interval)},
+    sel = select_from_table(
+        monkeypatch, RESTITUTION_THEN_WEAK_HARMONIC, ["restitution", "harmonic"],
+        {"a": list(a_interval)}, calls,
     )  # fmt: skip
     taken = [e for e, _f in sel["accepted"]]
     if kept:
@@ -1446,7 +1477,6 @@ def test_a_middle_effect_whose_refined_interval_reaches_its_null_value_is_droppe
     band being |s - 1| <= 0.002) it is dropped though it is not the last effect, and the
     final model refitted without it (0.6); with an interval clear of the band (0.95 to
     0.97) all three are kept."""
-    from bouncelab.gap import select
 
     calls = []
     h = {"a": 0.05, "k": 3.0, "psi": 1.0}
@@ -1457,20 +1487,10 @@ def test_a_middle_effect_whose_refined_interval_reaches_its_null_value_is_droppe
         "friction+harmonic+gamma_scale": (0.5, {**h, "s": 0.995, "mu": 0.2}),
         "friction+harmonic": (4.0, {**h, "mu": 0.2}),  # round 2: the miscalibration wins
     }
-    scripted = armature_table_fit_many(table, calls)
-
-    def fit_many(jobs, *args, **kwargs):
-        fits = scripted(jobs, *args, **kwargs)
-        for (_p, name, _b, _f, search, *_r), fit in zip(jobs, fits, strict=True):
-            if name == "friction+harmonic" and search == ():  # the local refit without s
-                fit.objective = 0.6
-        return fits
-
-    script_selection(monkeypatch, fit_many)
     ci = {"a": [0.045, 0.055], "s": list(s_interval), "mu": [0.18, 0.21]}
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["harmonic", "gamma_scale", "friction"],
-        interval=lambda fit, problem, i: ci,
+    sel = select_from_table(
+        monkeypatch, table, ["harmonic", "gamma_scale", "friction"], ci, calls,
+        refit=("friction+harmonic", 0.6),  # the local refit without s
     )  # fmt: skip
     taken = [e for e, _f in sel["accepted"]]
     if kept:
@@ -1496,7 +1516,6 @@ def test_a_first_effect_whose_refined_interval_reaches_its_null_value_is_dropped
     interval in the final model reaching s = 1 it is dropped though it came first: the
     final model is refitted without it (0.3) and the first step is restitution's round-1
     fit alone; with an interval clear of the band all three are kept."""
-    from bouncelab.gap import select
 
     calls = []
     table = {
@@ -1509,20 +1528,10 @@ def test_a_first_effect_whose_refined_interval_reaches_its_null_value_is_dropped
         "friction+restitution+gamma_scale": (0.8, {"e": 0.35, "mu": 0.23, "s": 0.9985}),
         "friction+restitution": (5.0, {"e": 0.35, "mu": 0.25}),
     }
-    scripted = armature_table_fit_many(table, calls)
-
-    def fit_many(jobs, *args, **kwargs):
-        fits = scripted(jobs, *args, **kwargs)
-        for (_p, name, _b, _f, search, *_r), fit in zip(jobs, fits, strict=True):
-            if name == "friction+restitution" and search == ():  # the local refit without s
-                fit.objective = 0.3
-        return fits
-
-    script_selection(monkeypatch, fit_many)
     ci = {"s": list(s_interval), "e": [0.34, 0.36], "mu": [0.24, 0.26]}
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["gamma_scale", "restitution", "friction"],
-        interval=lambda fit, problem, i: ci,
+    sel = select_from_table(
+        monkeypatch, table, ["gamma_scale", "restitution", "friction"], ci, calls,
+        refit=("friction+restitution", 0.3),  # the local refit without s
     )  # fmt: skip
     taken = [e for e, _f in sel["accepted"]]
     if kept:
@@ -1541,19 +1550,11 @@ def test_the_first_effect_stays_where_every_effect_reaches_its_null_value(monkey
     """Reference: a scripted selection (floor 1): restitution (10 -> 5), then a harmonic
     (-> 1.0), both intervals reaching their null values: the later one is dropped, the
     first stays (a selection is never emptied this way)."""
-    from bouncelab.gap import select
 
-    calls = []
-    table = {
-        "ideal": (10.0, {}),
-        "restitution": (5.0, {"e": 0.3}),
-        "restitution+harmonic": (1.0, {"e": 0.3, "a": 0.008, "k": 2.0, "psi": 0.7}),
-    }
-    script_selection(monkeypatch, armature_table_fit_many(table, calls))
-    sel = select.forward_select(
-        _OneStepProblem(), 1.0, candidates=["restitution", "harmonic"],
-        interval=lambda fit, problem, i: {"a": [0.0, 0.013], "e": [0.0, 0.4]},
-    )  # fmt: skip
+    ci = {"a": [0.0, 0.013], "e": [0.0, 0.4]}
+    sel = select_from_table(
+        monkeypatch, RESTITUTION_THEN_WEAK_HARMONIC, ["restitution", "harmonic"], ci
+    )
     assert [e for e, _f in sel["accepted"]] == ["restitution"]
     assert [w["effect"] for w in sel["weak_dropped"]] == ["harmonic"]
 

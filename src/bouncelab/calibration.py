@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from bouncelab.errors import BouncelabError
+from bouncelab.errors import BouncelabError, collected_warnings
 
 G_STANDARD = 9.80665  # m/s^2
 MIN_FLIGHT_S = 2e-3  # shorter flights: chatter, where contact compliance matters
@@ -279,13 +279,22 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     ``g_m_s2``, ``drop_height_m``, ``n_boot``, ``seed``, and what the bounces alone
     give (:func:`fall_from_bounces`: ``mu_from_bounces``, ``restitution_from_bounces``,
     ``t_fall_from_bounces_s`` and its standard error ``t_fall_from_bounces_sd_s``; a
-    fall more than ``FALL_Z`` of them off is warned about).
+    fall more than ``FALL_Z`` of them off is warned about), and ``warnings``: the lines
+    logged while reading and fitting the drop (:func:`bouncelab.errors.collected_warnings`),
+    so that the report can show them.
 
     Raises
     ------
     BouncelabError
         Not a drop run; no contact after the release; fewer than three bounces.
     """
+    with collected_warnings() as warnings:
+        out = _calibrate_run(run_dir, n_boot, seed)
+    return out | {"warnings": list(warnings)}
+
+
+def _calibrate_run(run_dir: str | Path, n_boot: int, seed: int) -> dict:
+    """:func:`calibrate_run` without the collection of its warnings."""
     from bouncelab.flights.coupling import ac_coupling_tau, undo_ac_coupling
     from bouncelab.flights.detect import detect_contacts
     from bouncelab.flights.extract import _step_slice, sample_times

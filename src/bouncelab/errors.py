@@ -1,12 +1,17 @@
-"""The one exception type for bad input.
+"""The one exception type for bad input, and the collection of warnings about it.
 
 Every check of user input raises :class:`BouncelabError` with the file it concerns and
 a short statement of the problem; the command line prints it as a single
-``error: <file>: <problem>`` line and exits non-zero, with no traceback.
+``error: <file>: <problem>`` line and exits non-zero, with no traceback. Input that is
+usable but suspect is warned about through :mod:`logging` (one line naming the file);
+:func:`collected_warnings` keeps those lines for an output that should carry them.
 """
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -34,3 +39,43 @@ class BouncelabError(Exception):
 
     def __str__(self) -> str:
         return f"{self.path}: {self.problem}" if self.path is not None else self.problem
+
+
+@contextmanager
+def collected_warnings() -> Iterator[list[str]]:
+    """Collect the warnings bouncelab's modules log inside the ``with`` block.
+
+    Yields the list the messages (``str``, in the order logged) are appended to. The
+    records still reach every other handler (the command line's stderr, a workflow
+    rule's log). Why: a warning about the input (a dirty contact, a drive channel at
+    another frequency, a time column printed with too few digits) matters to whoever
+    reads the outputs, and a log is read less often than the report that shows them.
+    """
+    messages: list[str] = []
+
+    class _Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            messages.append(record.getMessage())
+            # logging prints to stderr by itself only where no handler is found: this one
+            # must not silence that
+            if logging.lastResort is not None and not _other_handlers(record.name, self):
+                if record.levelno >= logging.lastResort.level:
+                    logging.lastResort.handle(record)
+
+    handler = _Keep(level=logging.WARNING)
+    logger = logging.getLogger("bouncelab")
+    logger.addHandler(handler)
+    try:
+        yield messages
+    finally:
+        logger.removeHandler(handler)
+
+
+def _other_handlers(name: str, besides: logging.Handler) -> bool:
+    """Whether a record of logger ``name`` reaches a handler other than ``besides``."""
+    logger: logging.Logger | None = logging.getLogger(name)
+    while logger is not None:
+        if any(h is not besides for h in logger.handlers):
+            return True
+        logger = logger.parent if logger.propagate else None
+    return False

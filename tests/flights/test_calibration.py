@@ -162,6 +162,8 @@ def test_a_spark_is_not_a_landing(tmp_path, caplog, where):
     assert cal["mu"] == pytest.approx(mu, abs=0.005)
     assert cal["restitution"] == pytest.approx(e, abs=0.005)
     assert "sparks?" in caplog.text
+    # the calibration carries its warnings, for the report (each names the recording)
+    assert any("sparks?" in w and str(run_dir) in w for w in cal["warnings"])
 
 
 def test_a_clean_drop_is_not_mended():

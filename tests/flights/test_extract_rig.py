@@ -15,12 +15,16 @@ one sample can show, and a missed one makes its neighbour match the wrong flight
 import shutil
 
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
 from bouncelab.flights import extract_run
+from bouncelab.flights.extract import DRIVE_CHANNEL_LINE
 from bouncelab.flights.extract import pressed_takeoffs as extract_pressed
+from bouncelab.gap.diagnose import extraction_warnings
 from bouncelab.rig import read_truth
+from bouncelab.tables import read_table, write_table
 
 GAMMAS = [0.5, 1.2, 1.6, 2.2, 2.8, 3.4, 4.2]
 TOL_S = 0.3e-3
@@ -178,12 +182,28 @@ def test_auto_polarity_unchecked_without_a_drive_is_a_warning(make_rig, tmp_path
     spec = yaml.safe_load((run_dir / "run.yaml").read_text())
     (run_dir / "run.yaml").write_text(yaml.safe_dump(spec | {"contact_level": "auto"}))
     with caplog.at_level("WARNING"):
-        extract_run(run_dir)
+        _, qc = extract_run(run_dir)
     assert "set contact_level in run.yaml" in caplog.text
+    # kept with the QC table, through its Parquet file, for the diagnosis to carry
+    (line,) = qc.attrs["warnings"]
+    assert line.startswith(str(run_dir)) and "set contact_level in run.yaml" in line
+    kept = read_table(write_table(qc, tmp_path / "flights.qc.parquet"))
+    assert kept.attrs["warnings"] == [line]
+    assert extraction_warnings(kept) == [line] and extraction_warnings(None) == []
     caplog.clear()
     with caplog.at_level("WARNING"):
-        extract_run(rig_dir)  # contact_level stated: no doubt, no warning
-    assert "contact_level" not in caplog.text
+        _, qc = extract_run(rig_dir)  # contact_level stated: no doubt, no warning
+    assert "contact_level" not in caplog.text and qc.attrs["warnings"] == []
+
+
+def test_the_drive_channel_line_is_said_once_where_the_diagnosis_warns_of_it():
+    qc = pd.DataFrame({"step": [0]})
+    qc.attrs["warnings"] = [
+        f"rec.wav: {DRIVE_CHANNEL_LINE} 30.3000 Hz, +1.00 % from drive_frequency_hz 30: ...",
+        "rec.wav: 3 takeoff(s) from rest while the plate pushed the body up ...",
+    ]
+    assert extraction_warnings(qc) == qc.attrs["warnings"]
+    assert extraction_warnings(qc, drive_warned=True) == qc.attrs["warnings"][1:]
 
 
 @pytest.mark.parametrize("dropouts", [0, 12])

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from bouncelab.errors import collected_warnings
 from bouncelab.flights.coupling import ac_coupling_tau, undo_ac_coupling
 from bouncelab.flights.detect import Detection, NoContactsError, detect_contacts
 from bouncelab.flights.phase import (
@@ -37,6 +38,10 @@ FLIGHT_COLUMNS = [
     "settled",
     "contact_before_s",
 ]
+#: The words that open the extraction's warning of a drive channel at another frequency
+#: than run.yaml's (the diagnosis says it once, :func:`bouncelab.gap.diagnose.extraction_warnings`).
+DRIVE_CHANNEL_LINE = "the drive channel runs at"
+
 QC_COLUMNS = [
     "run",
     "step",
@@ -366,7 +371,11 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     Returns
     -------
     flights : DataFrame, one row per flight, columns :data:`FLIGHT_COLUMNS`.
-    qc : DataFrame, one row per Gamma step (one for a drop run), :data:`QC_COLUMNS`.
+    qc : DataFrame, one row per Gamma step (one for a drop run), :data:`QC_COLUMNS`;
+        ``qc.attrs["warnings"]``: the warnings logged while reading and extracting the
+        run (list of str, each naming its file; :func:`bouncelab.errors.collected_warnings`),
+        kept in a Parquet file's metadata by :func:`bouncelab.tables.write_table` so that
+        the diagnosis can carry them.
 
     Raises
     ------
@@ -375,6 +384,14 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         at one rail; "no contacts found" (except for a sweep whose steps all have
         Gamma < 1, where the body never leaves the plate: no flights, no error).
     """
+    with collected_warnings() as warnings:
+        flights, qc = _extract_run(run_dir)
+    qc.attrs["warnings"] = list(warnings)
+    return flights, qc
+
+
+def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """:func:`extract_run` without the collection of its warnings."""
     from bouncelab.runs import load_run, read_recording, step_table
     from bouncelab.runs.validate import steps_after_end, steps_before_start
 
@@ -439,7 +456,7 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         phase_freq = phase_frequency(freqs, freq)
         if phase_freq != freq:
             logging.getLogger(__name__).warning(
-                "%s: the drive channel runs at %.4f Hz, %+.2f %% from drive_frequency_hz "
+                "%s: " + DRIVE_CHANNEL_LINE + " %.4f Hz, %+.2f %% from drive_frequency_hz "
                 "%g: the drive phases follow the channel; T and settle cycles use the "
                 "stated value",
                 rec.path,

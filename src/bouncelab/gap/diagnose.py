@@ -30,6 +30,7 @@ from bouncelab.flights.accel import (
     hum_clashes,
 )
 from bouncelab.flights.armature import armature_from_accel
+from bouncelab.flights.extract import DRIVE_CHANNEL_LINE
 from bouncelab.gap.drift import DRIFT_ABS, DRIFT_REL, drift_reason, strength_by_half
 from bouncelab.gap.features import circular_mean, compare_features, features, wrap_angle
 from bouncelab.gap.fit import (
@@ -1360,7 +1361,8 @@ def diagnose_run(
         result["accel_calibration"] = {**accel, "fixed": bool(fix_accel)}
     # held at the reading, a fitted s cannot disagree with it
     compared = [] if fix_accel else accel_warnings(accel, result)
-    result["input_warnings"] = drive_warnings(run, qc) + accel_notes + compared
+    drive = drive_warnings(run, qc)
+    result["input_warnings"] = drive + extraction_warnings(qc, bool(drive)) + accel_notes + compared
     result["warnings"] = result["input_warnings"] + result["warnings"]
     if include_timings:
         # the whole call: reading the run and every seed's diagnosis, retries included
@@ -1546,6 +1548,21 @@ def _qc_beside(flights: str | Path) -> pd.DataFrame | None:
 
     path = qc_path_for(flights)
     return read_table(path) if path.is_file() else None
+
+
+def extraction_warnings(qc: pd.DataFrame | None, drive_warned: bool = False) -> list[str]:
+    """The warnings the extraction logged about the recording (``qc.attrs["warnings"]``,
+    :func:`bouncelab.flights.extract_run`; kept in the QC Parquet file), [] without them
+    (no QC table, a CSV one, or one written before session 77). Where
+    :func:`drive_warnings` already warns of the drive channel's frequency
+    (``drive_warned``), the extraction's own line on it is left out: the same
+    measurement, said once."""
+    if qc is None:
+        return []
+    lines = [str(w) for w in qc.attrs.get("warnings", []) or []]
+    if drive_warned:
+        lines = [w for w in lines if DRIVE_CHANNEL_LINE not in w]
+    return lines
 
 
 def drive_warnings(run, qc: pd.DataFrame | None) -> list[str]:

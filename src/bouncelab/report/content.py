@@ -194,6 +194,8 @@ def runs_table(checks: dict[str, dict]) -> dict:
 
 
 def calibration_rows(results: Path, drops: list[str]) -> list[list[str]]:
+    """One row per calibrated drop run: mu and e with their intervals, the bounces used,
+    the calibration's warnings ("-": none)."""
     rows = []
     for run in drops:
         cal = _read_json(results / "runs" / run / "calibration.json")
@@ -206,6 +208,7 @@ def calibration_rows(results: Path, drops: list[str]) -> list[list[str]]:
                 f"{cal['restitution']:.4f} "
                 f"[{cal['restitution_ci'][0]:.4f}, {cal['restitution_ci'][1]:.4f}]",
                 str(cal["n_bounces"]),
+                "; ".join(map(str, cal.get("warnings") or [])) or "-",
             ]
         )
     return rows
@@ -618,7 +621,7 @@ def build_context(
             {
                 "type": "table",
                 "caption": "Drop-test calibration (95 % bootstrap intervals)",
-                "header": ["run", "friction mu", "restitution e", "bounces"],
+                "header": ["run", "friction mu", "restitution e", "bounces", "warnings"],
                 "rows": cal_rows,
             }
         )

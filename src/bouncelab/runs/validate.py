@@ -125,7 +125,9 @@ def gamma_gaps(gammas, factor: float = GAP_FACTOR) -> list[tuple[float, float]]:
 
 @dataclass(frozen=True)
 class ChannelSummary:
-    """Range of one channel: role, where it is in the file, min and max in volts."""
+    """Range of one channel: role, where it is in the file, min and max in volts, and
+    ``dtype``, what bouncelab reads it as (float32 for audio, float64 otherwise: not
+    necessarily the file's own type, which a float32 NPZ or TDMS channel is not)."""
 
     role: str
     spec: int | str
@@ -203,7 +205,8 @@ class ValidationReport:
         for i, c in enumerate(self.channels):
             head = "channels   " if i == 0 else "           "
             lines.append(
-                f"{head}{c.role:<10} {c.spec!s:<16} {c.min_v:+.4g} .. {c.max_v:+.4g} V  ({c.dtype})"
+                f"{head}{c.role:<10} {c.spec!s:<16} {c.min_v:+.4g} .. {c.max_v:+.4g} V  "
+                f"(read as {c.dtype})"
             )
         lines.append(f"contact    level {r.contact_level}")
         if r.mass_kg is not None:

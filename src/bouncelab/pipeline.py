@@ -21,7 +21,8 @@ def check_run_verdict(run_dir) -> dict:
     ""}``. The workflow records this instead of failing, so that one broken run cannot
     stop the report; the run's own jobs still fail with the same error.  A sweep too
     short to diagnose (:func:`bouncelab.gap.fit.too_few_steps`) passes, and gets every
-    product but the diagnosis.
+    product but the diagnosis. A run that meets the contract but has no contacts to
+    extract (``ValidationReport.extract_problem``) is refused with that problem.
     """
     from bouncelab.gap.fit import too_few_steps
     from bouncelab.runs import validate_run
@@ -30,14 +31,11 @@ def check_run_verdict(run_dir) -> dict:
     try:
         report = validate_run(run_dir)
     except BouncelabError as exc:
-        return {
-            "ok": False,
-            "run": run_dir.name,
-            "error": str(exc),
-            "summary": "",
-            "info": {},
-            "no_diagnosis": "",
-        }
+        return _refused(run_dir, str(exc))
+    if report.extract_problem:
+        # the folder meets the contract, but extract would fail: the run is refused here,
+        # or the report waits for its products (a black-box probe's silent channel)
+        return _refused(run_dir, f"{report.run.recording_path}: {report.extract_problem}")
     info = json.loads(json.dumps(report.to_dict(), default=str))
     short = too_few_steps(info.get("n_steps") or 0) if info.get("kind") == "sweep" else None
     return {
@@ -47,6 +45,18 @@ def check_run_verdict(run_dir) -> dict:
         "summary": report.summary(),
         "info": info,
         "no_diagnosis": short or "",
+    }
+
+
+def _refused(run_dir: Path, error: str) -> dict:
+    """:func:`check_run_verdict` of a run that cannot be used: ``error`` says why."""
+    return {
+        "ok": False,
+        "run": run_dir.name,
+        "error": error,
+        "summary": "",
+        "info": {},
+        "no_diagnosis": "",
     }
 
 

@@ -136,10 +136,36 @@ def test_a_continuity_channel_with_no_contacts_is_a_warning(make_run):
         for w in validate_run(make_run("npz", name="silent", signals=signals)).warnings
         if "no contacts" in w
     ]
-    assert warning.startswith("continuity channel: no contacts found")
+    assert warning.startswith("no contacts found: the continuity channel shows no transitions")
     assert "extract and calibrate will fail" in warning
     fine = validate_run(make_run("npz", name="fine"))
     assert not any("no contacts" in w for w in fine.warnings)
+    assert fine.extract_problem is None
+
+
+def test_a_run_with_nothing_to_extract_is_refused_by_the_workflow_check(make_run):
+    """The workflow's check refuses a run extract will fail on, naming the recording and
+    the problem (before, it passed: under --keep-going the report waited for the run's
+    products and was never rebuilt; a black-box probe). A sweep resting below Gamma 1
+    with the same silent channel is no fault: no contacts are expected there."""
+    from bouncelab.pipeline import check_run_verdict
+
+    signals = known_signals()
+    signals["continuity"] = 2.5 + 0.02 * np.random.default_rng(3).standard_normal(
+        signals["continuity"].size
+    )
+    silent = make_run("npz", name="silent", signals=signals)
+    verdict = check_run_verdict(silent)
+    assert not verdict["ok"]
+    # the line extract would print
+    assert verdict["error"].startswith(f"{silent / 'rec.npz'}: no contacts found: the continuity")
+    assert check_run_verdict(make_run("npz", name="fine"))["ok"]
+    steps = [{"t_s": 0.0, "gamma": 0.5}, {"t_s": 1.0, "gamma": 0.8}]
+    resting = make_run(
+        "npz", name="resting", signals=signals, yaml_overrides={"gamma_steps": steps}
+    )
+    assert validate_run(resting).extract_problem is None
+    assert check_run_verdict(resting)["ok"]
 
 
 def test_the_documented_extension_keys_are_not_unknown(make_run):

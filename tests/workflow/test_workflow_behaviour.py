@@ -69,6 +69,21 @@ def test_two_runs_give_identical_simulations_and_figures(workflow_dir):
     assert hashes() == before
 
 
+def write_silent_sweep(run_dir):
+    """A sweep run (NPZ, 2 s at 20 kHz, Gamma 2 and 3) whose continuity channel is noise
+    about one level: a disconnected circuit, no contact to find."""
+    import numpy as np
+
+    run_dir.mkdir(parents=True)
+    noise = 2.5 + 0.02 * np.random.default_rng(5).standard_normal(40_000)
+    np.savez_compressed(run_dir / "rec.npz", continuity=noise)
+    (run_dir / "run.yaml").write_text(
+        "format_version: 1\nkind: sweep\nrecording: rec.npz\nsample_rate_hz: 20000\n"
+        "channels: {continuity: continuity}\ndrive_frequency_hz: 30\n"
+        "gamma_steps:\n- {t_s: 0.0, gamma: 2.0}\n- {t_s: 1.0, gamma: 3.0}\n"
+    )
+
+
 def test_dropped_in_run_and_broken_run(project_copy):
     # the built project, copied: up to date before anything is dropped in
     work = project_copy
@@ -102,18 +117,40 @@ def test_dropped_in_run_and_broken_run(project_copy):
     assert ("calibrate", "run=a_lighter_body_drop") in jobs
     shutil.rmtree(other)
 
-    # a broken run: its own job fails with its error, the rest and the report build
+    # broken runs: their own jobs fail with their errors, the rest and the report build.
+    # A truncated recording; a drop test of the sweeps' body, first by name, without a
+    # required key (it took over the sweeps' calibration, which fell back to the
+    # defaults); a sweep whose continuity channel holds no contacts (it passed the check,
+    # and the report waited for its products: a black-box probe)
     broken = work / "raw" / "broken_run"
     shutil.copytree(REPO / "raw" / "accel_g2-4", broken)
     rec = next(p for p in broken.iterdir() if p.suffix == ".flac")
     rec.write_bytes(rec.read_bytes()[:2000])  # truncated audio
+    keyless = work / "raw" / "a_broken_drop"
+    shutil.copytree(REPO / "raw" / "drop_test", keyless)
+    spec = (keyless / "run.yaml").read_text()
+    (keyless / "run.yaml").write_text(re.sub(r"(?m)^sample_rate_hz:.*\n", "", spec))
+    write_silent_sweep(work / "raw" / "silent_sweep")
     out = snakemake(work, "--keep-going", check=False)
     assert out.returncode != 0
+    jobs = executed_jobs(out.stdout + out.stderr)
+    mine = ("run=broken_run", "run=a_broken_drop", "run=silent_sweep")
+    foreign = [(r, w) for r, w in jobs if w and not w.startswith(mine)]
+    assert not foreign, f"jobs of other runs reran: {foreign}"
     log = (work / "results" / "logs" / "extract" / "broken_run.log").read_text()
     assert log.startswith("error:") and "broken_run" in log
+    log = (work / "results" / "logs" / "extract" / "silent_sweep.log").read_text()
+    assert log.startswith("error:") and "no contacts found" in log
     html = (work / "results" / "report" / "report.html").read_text()
-    assert "broken_run" in html and "Runs that could not be used" in html
+    assert "Runs that could not be used" in html
+    for name in ("broken_run", "a_broken_drop", "silent_sweep"):
+        assert name in html, name
+    assert "required key &#39;sample_rate_hz&#39; is missing" in html or (
+        "required key 'sample_rate_hz' is missing" in html
+    )
     assert 'id="run-new_sweep"' in html
+    shutil.rmtree(keyless)
+    shutil.rmtree(work / "raw" / "silent_sweep")
 
     # a sweep too short to diagnose (2 Gamma steps): every product but the diagnosis,
     # and the report says why (before, its diagnose job failed and stopped the report)

@@ -87,12 +87,15 @@ def _mass_kg(meta):
         return None
 
 
-def calibration_run_for(sweep):
+def calibration_run_for(sweep, usable=None):
     """The drop run whose calibration feeds this sweep's models, or None: pinned, else
     among the drop runs of the sweep's body (the same mass_kg, when stated; all drop runs
     when none matches) the one sharing the longest name prefix, the first by name on a tie.
     Why the body first: a drop test of another body dropped into raw/ must not take over
     the runs calibrated before it (it did, being first by name with no prefix shared).
+    ``usable``: a predicate on drop run ids (their check passed); the others are not
+    candidates. Why: a broken drop run of the same body, first by name, took over a good
+    one's sweep, whose models then fell back to the defaults (a black-box probe).
     """
     cal = config.get("calibration", {})
     if cal.get("source", "auto") == "none":
@@ -100,11 +103,12 @@ def calibration_run_for(sweep):
     pinned = cal.get("pin", {}).get(sweep)
     if pinned:
         return pinned
-    if not DROPS:
+    drops = [d for d in DROPS if usable is None or usable(d)]
+    if not drops:
         return None
     mass = _mass_kg(RUNS[sweep])
     # the same number as stated (0.249 and 0.2490 parse to one float)
-    same_body = [d for d in DROPS if mass is not None and _mass_kg(RUNS[d]) == mass]
+    same_body = [d for d in drops if mass is not None and _mass_kg(RUNS[d]) == mass]
 
     def shared_prefix(drop):
         n = 0
@@ -114,12 +118,12 @@ def calibration_run_for(sweep):
             n += 1
         return n
 
-    return max(sorted(same_body or DROPS), key=shared_prefix)
+    return max(sorted(same_body or drops), key=shared_prefix)
 
 
 def calibration_input(wildcards):
     """Calibration JSON for a sweep's models: [] when none (defaults are used)."""
-    drop = calibration_run_for(wildcards.run)
+    drop = calibration_run_for(wildcards.run, usable=run_ok)
     if drop is None or drop not in DROPS or not run_ok(drop):
         return []
     return [f"{RES}/runs/{drop}/calibration.json"]

@@ -13,7 +13,7 @@ def add_parser(sub) -> None:
         "calibrate",
         help="friction and restitution from a drop run (JSON)",
         description="Fit Coulomb friction mu and restitution e to a drop run's fall time and "
-        "bounce flights; 95 %% bootstrap intervals (CONTRACTS.md section 4).",
+        "bounce flights; 95 % bootstrap intervals (CONTRACTS.md section 4).",
     )
     p.add_argument("run_dir", metavar="RUN_DIR", help="drop run folder (holds run.yaml)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.json", help="output JSON")

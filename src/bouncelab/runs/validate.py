@@ -143,7 +143,11 @@ class ValidationReport:
     ``steps`` is :func:`step_table`; ``gaps`` the Gamma gaps; ``warnings`` things
     that are allowed but worth a look (ignored keys, unused ``full_scale_v``, a
     ``time_s`` spacing that disagrees with ``sample_rate_hz``, steps too short to
-    settle).
+    settle); ``extract_problem``: why extracting the run's flights will fail although the
+    folder meets the contract (a continuity channel with no contacts where the body
+    must leave the plate: a drop run, or a step at Gamma 1 or more), or None. It is
+    among the warnings too; the workflow's check refuses the run on it, so that the
+    report does not wait for products the run cannot give.
     """
 
     run: Run
@@ -156,6 +160,7 @@ class ValidationReport:
     steps: pd.DataFrame
     gaps: list[tuple[float, float]]
     warnings: list[str] = field(default_factory=list)
+    extract_problem: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict of the report (numbers as Python floats and ints)."""
@@ -231,7 +236,8 @@ class ValidationReport:
         return "\n".join(lines)
 
 
-def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
+def _warnings(run: Run, rec: Recording, steps: pd.DataFrame, problem: str | None) -> list[str]:
+    """The report's warnings; ``problem``: :func:`extract_problem` of the run."""
     out = []
     unknown = [str(k) for k in run.extra if k not in EXTENSION_KEYS]
     if unknown:
@@ -264,22 +270,20 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
                 f"{len(short)} step(s) no longer than settle_cycles ({run.settle_cycles} cycles),"
                 f" e.g. step {short[0]}: no settled flights there"
             )
-    if rec.channels["continuity"].size and np.ptp(rec.channels["continuity"]) == 0:
+    if problem:
+        out.append(f"{problem}; extract and calibrate will fail")
+    elif rec.channels["continuity"].size and np.ptp(rec.channels["continuity"]) == 0:
         out.append("continuity channel is constant: no contact edges to find")
-    elif run.kind == "drop" or (len(steps) and bool((steps["gamma"] >= 1.0).any())):
-        no_contacts = _no_contacts(rec)
-        if no_contacts:
-            out.append(f"continuity channel: {no_contacts}; extract and calibrate will fail")
-        else:
-            from bouncelab.flights.coupling import ac_coupling_tau
+    elif contacts_expected(run, steps):
+        from bouncelab.flights.coupling import ac_coupling_tau
 
-            tau = ac_coupling_tau(rec.channels["continuity"], rec.fs)
-            if tau is not None:
-                out.append(
-                    "continuity channel drains towards its mean as through an AC-coupled "
-                    f"input (a sound card's; corner {1 / (2 * np.pi * tau):.3g} Hz): "
-                    "extract and calibrate undo it (docs/flights.md)"
-                )
+        tau = ac_coupling_tau(rec.channels["continuity"], rec.fs)
+        if tau is not None:
+            out.append(
+                "continuity channel drains towards its mean as through an AC-coupled "
+                f"input (a sound card's; corner {1 / (2 * np.pi * tau):.3g} Hz): "
+                "extract and calibrate undo it (docs/flights.md)"
+            )
     drive = rec.channels.get("drive")
     if run.kind == "sweep" and drive is not None and run.drive_frequency_hz and len(steps):
         from bouncelab.flights.extract import drive_frequencies
@@ -291,6 +295,24 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame) -> list[str]:
         if warning:
             out.append(warning)
     return out
+
+
+def contacts_expected(run, steps: pd.DataFrame) -> bool:
+    """Whether the body must leave the plate in this run: a drop, or a sweep with a
+    step at Gamma 1 or more (below it the body rests, and no contact is no fault)."""
+    return run.kind == "drop" or bool(len(steps) and (steps["gamma"] >= 1.0).any())
+
+
+def extract_problem(run, rec: Recording, steps: pd.DataFrame) -> str | None:
+    """Why extracting the run's flights will fail, or None (:class:`ValidationReport`'s
+    ``extract_problem``): where contacts are expected (:func:`contacts_expected`), a
+    constant continuity channel or one with no contacts to find (:func:`_no_contacts`)."""
+    if not contacts_expected(run, steps):
+        return None
+    x = rec.channels["continuity"]
+    if x.size and np.ptp(x) == 0:
+        return "the continuity channel is constant: no contact edges to find"
+    return _no_contacts(rec)
 
 
 def _no_contacts(rec: Recording) -> str | None:
@@ -320,6 +342,7 @@ def validate_run(run_dir: str | Path) -> ValidationReport:
     run = load_run(run_dir)
     rec = read_recording(run, ROLES)
     steps = step_table(run, rec.duration_s)
+    problem = extract_problem(run, rec, steps)
     channels = [
         ChannelSummary(
             role,
@@ -340,7 +363,8 @@ def validate_run(run_dir: str | Path) -> ValidationReport:
         channels=channels,
         steps=steps,
         gaps=gamma_gaps(steps["gamma"]) if run.kind == "sweep" else [],
-        warnings=_warnings(run, rec, steps),
+        warnings=_warnings(run, rec, steps, problem),
+        extract_problem=problem,
     )
 
 

@@ -162,3 +162,28 @@ def test_a_drive_channel_off_the_stated_frequency_is_a_warning(
     assert r["warnings"][0] == warning
     assert f"runs at {1.05 * stated:.3f} Hz (median over 2 steps), +5.0 %" in warning
     assert f"warning: {warning}" in capsys.readouterr().err.splitlines()
+
+
+def test_each_input_warning_is_printed_once(null_case, tmp_path, monkeypatch, capsys):
+    """A warning the extraction logged (printed then, as logging does) is not printed
+    again among the final ``warning:`` lines; one it did not log (the drive check's) is.
+    Scripted diagnosis: the terminal's lines are what is tested."""
+    import logging
+
+    from bouncelab.gap import diagnose
+
+    logged = "rec.wav: 3 takeoff(s) from rest while the plate pushed the body up"
+    drive = "run.yaml: the drive channel runs at 30.300 Hz, +1.0 % from drive_frequency_hz 30"
+
+    def scripted(run_dir, **kwargs):
+        logging.getLogger("bouncelab.flights.extract").warning(logged)
+        gaps = {"baseline": {"gap": 0.1}, "final_gap": 0.1, "noise_floor": 0.1}
+        return {"selected": [], "unexplained": False, "input_warnings": [drive, logged], **gaps}
+
+    monkeypatch.setattr(diagnose, "diagnose_run", scripted)
+    monkeypatch.setattr(logging.getLogger(), "handlers", [])  # stderr by logging itself
+    run_dir, flights = null_case
+    code = main(["diagnose", str(run_dir), "-o", str(tmp_path / "d.json")])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.count(logged) == 1 and f"warning: {drive}" in err

@@ -91,6 +91,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from bouncelab.errors import collected_warnings
     from bouncelab.gap.diagnose import diagnose_run
     from bouncelab.gap.seeds import RETRIES, retry_warning, seed_warning
     from bouncelab.gap.select import SelectSettings
@@ -113,26 +114,31 @@ def run(args) -> int:
     if args.fix_calibration and not args.calibration:
         raise BouncelabError(None, "--fix-calibration needs --calibration CAL.json")
     Model.parse(args.baseline)  # a bad model name is bad input: one error line
-    result = diagnose_run(
-        run_dir,
-        calibration=args.calibration,
-        baseline=args.baseline,
-        seed=args.seed,
-        flights=args.flights,
-        fix_calibration=args.fix_calibration,
-        workers=args.workers,
-        include_timings=args.timings,
-        check_seeds=args.check_seeds,
-        retries=RETRIES if args.retries is None else args.retries,
-        fix_accel=args.fix_accel,
-        select_settings=(
-            None if args.repeat_limit is None else SelectSettings(repeat_limit=args.repeat_limit)
-        ),
-    )
+    # the extraction's warnings are printed as they are logged: not again at the end
+    with collected_warnings() as printed:
+        result = diagnose_run(
+            run_dir,
+            calibration=args.calibration,
+            baseline=args.baseline,
+            seed=args.seed,
+            flights=args.flights,
+            fix_calibration=args.fix_calibration,
+            workers=args.workers,
+            include_timings=args.timings,
+            check_seeds=args.check_seeds,
+            retries=RETRIES if args.retries is None else args.retries,
+            fix_accel=args.fix_accel,
+            select_settings=(
+                None
+                if args.repeat_limit is None
+                else SelectSettings(repeat_limit=args.repeat_limit)
+            ),
+        )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1, sort_keys=False, allow_nan=False) + "\n")
     for warning in result.get("input_warnings", []):
-        print(f"warning: {warning}", file=sys.stderr)
+        if warning not in printed:
+            print(f"warning: {warning}", file=sys.stderr)
     disagreement = seed_warning(result["seed_check"]) if "seed_check" in result else None
     if disagreement:
         print(f"warning: {disagreement}", file=sys.stderr)

@@ -32,6 +32,16 @@ def test_without_any_handler_the_warning_is_still_printed(capsys):
         root.handlers[:] = saved
     assert kept == ["x.csv: time_s rounded"]
     assert "x.csv: time_s rounded" in capsys.readouterr().err
+    # nested blocks (the diagnosis command around the extraction): both keep it, it is
+    # printed once
+    root.handlers.clear()
+    try:
+        with collected_warnings() as outer, collected_warnings() as inner:
+            logging.getLogger("bouncelab.flights.extract").warning("rec.wav: dirty")
+    finally:
+        root.handlers[:] = saved
+    assert outer == inner == ["rec.wav: dirty"]
+    assert capsys.readouterr().err.count("rec.wav: dirty") == 1
 
 
 def test_an_error_is_one_line_naming_the_file_and_survives_a_worker_process():

@@ -41,28 +41,36 @@ class BouncelabError(Exception):
         return f"{self.path}: {self.problem}" if self.path is not None else self.problem
 
 
+class _Collector(logging.Handler):
+    """Appends each record's message to ``messages`` (see :func:`collected_warnings`)."""
+
+    def __init__(self, messages: list[str]):
+        super().__init__(level=logging.WARNING)
+        self.messages = messages
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+        # logging prints to stderr by itself only where no handler is found: collectors
+        # must not silence that; with nested blocks, the first collector prints, once
+        if logging.lastResort is not None and _first_collector(record.name) is self:
+            if record.levelno >= logging.lastResort.level:
+                logging.lastResort.handle(record)
+
+
 @contextmanager
 def collected_warnings() -> Iterator[list[str]]:
     """Collect the warnings bouncelab's modules log inside the ``with`` block.
 
     Yields the list the messages (``str``, in the order logged) are appended to. The
     records still reach every other handler (the command line's stderr, a workflow
-    rule's log). Why: a warning about the input (a dirty contact, a drive channel at
-    another frequency, a time column printed with too few digits) matters to whoever
-    reads the outputs, and a log is read less often than the report that shows them.
+    rule's log), and are printed once where no other handler takes them; blocks may
+    nest (the diagnosis command around the extraction). Why: a warning about the input
+    (a dirty contact, a drive channel at another frequency, a time column printed with
+    too few digits) matters to whoever reads the outputs, and a log is read less often
+    than the report that shows them.
     """
     messages: list[str] = []
-
-    class _Keep(logging.Handler):
-        def emit(self, record: logging.LogRecord) -> None:
-            messages.append(record.getMessage())
-            # logging prints to stderr by itself only where no handler is found: this one
-            # must not silence that
-            if logging.lastResort is not None and not _other_handlers(record.name, self):
-                if record.levelno >= logging.lastResort.level:
-                    logging.lastResort.handle(record)
-
-    handler = _Keep(level=logging.WARNING)
+    handler = _Collector(messages)
     logger = logging.getLogger("bouncelab")
     logger.addHandler(handler)
     try:
@@ -71,11 +79,15 @@ def collected_warnings() -> Iterator[list[str]]:
         logger.removeHandler(handler)
 
 
-def _other_handlers(name: str, besides: logging.Handler) -> bool:
-    """Whether a record of logger ``name`` reaches a handler other than ``besides``."""
+def _first_collector(name: str) -> _Collector | None:
+    """The first :class:`_Collector` a record of logger ``name`` reaches, or None where
+    it reaches another handler too (that one shows it)."""
     logger: logging.Logger | None = logging.getLogger(name)
+    first = None
     while logger is not None:
-        if any(h is not besides for h in logger.handlers):
-            return True
+        for h in logger.handlers:
+            if not isinstance(h, _Collector):
+                return None
+            first = first or h
         logger = logger.parent if logger.propagate else None
-    return False
+    return first

@@ -13,14 +13,15 @@ from scipy.signal import lfilter
 
 
 def switch_signal(n, fs, contacts, oversample=50):
-    """Fine-grid switch (n*oversample,) with 1 inside each (start_s, end_s) contact."""
+    """Fine-grid switch (n*oversample,) with 1 inside each (start_s, end_s) contact, or
+    ``level`` inside a ``(start_s, end_s, level)`` one (a contact that half-conducts)."""
     m = n * oversample
     s = np.zeros(m)
     dt = 1.0 / (fs * oversample)
-    for a, b in contacts:
+    for a, b, *level in contacts:
         ia = int(np.ceil(a / dt))
         ib = int(np.ceil(b / dt))
-        s[max(ia, 0) : max(min(ib, m), 0)] = 1.0
+        s[max(ia, 0) : max(min(ib, m), 0)] = level[0] if level else 1.0
     return s
 
 

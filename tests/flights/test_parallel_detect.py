@@ -239,3 +239,29 @@ def test_identical_to_serial_on_rig_recording(make_rig):
         det = detect_contacts(x, n_threads=n_threads, piece=piece)
         assert differing(det, ref) == []
     assert det.t_edge.size > 500
+
+
+def test_held_levels_cut_anywhere_read_as_serial():
+    """Held levels (a contact that half-conducts: :func:`kernels._held_level` reads up to
+    three intervals on each side of the sample) with cuts at every sample of each hold
+    and around it, without warm-up: the serial pass's edges, bit for bit."""
+    from test_detect import held_in_longest_flights
+
+    c = bouncing_contacts(4.0, seed=4)
+    held, starts = held_in_longest_flights(c, 0.4, hold_s=1e-3, count=4)
+    x, _ = continuity(held, 4.0, tau_s=25e-6, noise_v=0.01, seed=5)
+    det, params = edge_params(x)
+    cuts = sorted({int(a * FS) + j for a in starts for j in range(-5, 26)})
+    ref_t, ref_k, *_ = K.detect_edges_serial(x, *params)
+    for warmup in (0, D.EDGE_WARMUP):
+        D_warm = D.EDGE_WARMUP
+        try:
+            D.EDGE_WARMUP = warmup
+            with D.Parallel(2) as par:
+                results, _, _ = par.edges(x, params, cuts=cuts)
+        finally:
+            D.EDGE_WARMUP = D_warm
+        assert np.array_equal(np.concatenate([r[0] for r in results]), ref_t)
+        assert np.array_equal(np.concatenate([r[1] for r in results]), ref_k)
+    s, e = det.contacts()
+    assert sum(((e / FS > a) & (s / FS < a + 1e-3)).sum() for a in starts) == len(starts)

@@ -34,6 +34,10 @@ Rules (docs/flights.md has the full story):
   0.06, 0.45)``; a contact that fills less than that share of one sample interval is
   not seen (about 6 us at 20 kHz with the usual RC front end), and the two flights
   around it merge into one.
+* A level held between open and contact (a contact that half-conducts: four or more
+  intervals at one partial fraction) is one contact, not one per two samples
+  (:func:`kernels._held_reading`); :func:`held_stretches` measures such stretches for
+  the extraction's warning.
 * A front end that rings before its edges (a sound card's linear-phase anti-alias
   filter; :func:`pre_edge_ringing`) has its ringing taken as noise, and is read again.
 
@@ -397,6 +401,58 @@ def pre_edge_ringing(x, t_edge, block, gap_b) -> tuple[float, int]:
     gap = np.abs(gap_b[np.minimum(k // block, gap_b.shape[0] - 1)])
     dev = np.abs(near) / gap[:, None]
     return float(1.4826 * np.median(dev)), int(k.size)
+
+
+HELD_BAND = (0.1, 0.9)  # share of the gap a held level lies in (edges pass through)
+HELD_MIN_S = 1e-3  # shortest stretch between the levels reported as held, seconds
+HELD_TAU = 8.0  # ... and in RC time constants (an edge's tail crosses the band in < 2)
+
+
+@dataclass(frozen=True)
+class HeldStretches:
+    """Stretches where the continuity channel sits between its levels.
+
+    count : int, stretches of at least ``min_samples`` samples in :data:`HELD_BAND`.
+    samples : int, their samples in all.
+    longest_start, longest_len : int, first sample and length (samples) of the longest.
+    """
+
+    count: int
+    samples: int
+    longest_start: int
+    longest_len: int
+
+
+def held_stretches(x: np.ndarray, det: Detection, min_samples: int,
+                   chunk: int = 1 << 20) -> HeldStretches:
+    """Stretches of the channel held between the levels (a contact that half-conducts).
+
+    Parameters
+    ----------
+    x : (n,) samples, volts, as detected.
+    det : the :class:`Detection` of ``x`` (its block levels).
+    min_samples : shortest stretch counted, samples.
+    chunk : samples per pass (memory: a few float64 arrays of that size).
+
+    The edge pass reads such a level as one contact where it lies above the detection
+    threshold (:func:`kernels._held_level`); this only measures it, for a warning.
+    """
+    n = x.shape[0]
+    centre = (np.arange(det.open_v.shape[0]) + 0.5) * det.block
+    gap = det.contact_v - det.open_v
+    inside = np.empty(n, dtype=bool)
+    for a in range(0, n, chunk):
+        k = np.arange(a, min(a + chunk, n))
+        u = (x[k] - np.interp(k, centre, det.open_v)) / np.interp(k, centre, gap)
+        inside[k] = (u > HELD_BAND[0]) & (u < HELD_BAND[1])
+    change = np.flatnonzero(np.diff(np.concatenate(([False], inside, [False])).view(np.int8)))
+    starts, ends = change[::2], change[1::2]
+    length = ends - starts
+    keep = length >= max(int(min_samples), 1)
+    if not keep.any():
+        return HeldStretches(0, 0, 0, 0)
+    i = int(np.argmax(np.where(keep, length, -1)))
+    return HeldStretches(int(keep.sum()), int(length[keep].sum()), int(starts[i]), int(length[i]))
 
 
 def deconvolved_noise(x, block, open_b, gap_b, q, chunks: int = 64, length: int = 4096):

@@ -9,6 +9,7 @@ into flights, assigns each to its Gamma step by takeoff time and adds the drive 
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,15 @@ import pandas as pd
 
 from bouncelab.errors import collected_warnings
 from bouncelab.flights.coupling import ac_coupling_tau, undo_ac_coupling
-from bouncelab.flights.detect import Detection, NoContactsError, detect_contacts
+from bouncelab.flights.detect import (
+    HELD_BAND,
+    HELD_MIN_S,
+    HELD_TAU,
+    Detection,
+    NoContactsError,
+    detect_contacts,
+    held_stretches,
+)
 from bouncelab.flights.phase import (
     MIN_FREQUENCY_CYCLES,
     TWO_PI,
@@ -450,6 +459,8 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             det.ringing,
             min(6.0 * det.ringing, 0.45),
         )
+    if det is not None:
+        _warn_held_levels(x, det, fs, rec.path, time_s)
     fits, freqs, phase_freq = {}, {}, freq
     if drive is not None and freq:
         freqs = drive_frequencies(drive, steps, fs, freq, time_s)
@@ -514,6 +525,29 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         )
     qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None, freqs)
     return flights, qc
+
+
+def _warn_held_levels(x, det: Detection, fs: float, path, time_s) -> None:
+    """Warn of stretches where the channel sits between its levels (partial conduction)."""
+    min_samples = max(round(HELD_MIN_S * fs), math.ceil(HELD_TAU * det.tau_samples))
+    held = held_stretches(x, det, min_samples)
+    if held.count == 0:
+        return
+    t0 = float(time_s[held.longest_start]) if time_s is not None else held.longest_start / fs
+    logging.getLogger(__name__).warning(
+        "%s: the continuity channel sits between its levels (%.0f-%.0f %% of the gap) in "
+        "%d stretch(es) of %.3g ms or more, %.3g ms in all (longest %.3g ms at t = %.4g s): "
+        "a contact that half-conducts (dirty or loose)? Each is read as one contact where "
+        "it lies above the detection threshold, else as flight",
+        path,
+        100 * HELD_BAND[0],
+        100 * HELD_BAND[1],
+        held.count,
+        1e3 * min_samples / fs,
+        1e3 * held.samples / fs,
+        1e3 * held.longest_len / fs,
+        t0,
+    )
 
 
 #: A takeoff after a contact longer than ``PRESSED_REST_S`` (the body rests or rides)

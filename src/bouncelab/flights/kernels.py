@@ -297,6 +297,78 @@ def _pulse_in_interval(w, k, q, tau, d_prior):
     return t_start, t_end
 
 
+HELD_TOL = 0.03  # least change of z (share of the gap) between two intervals of a held level
+HELD_RUN = 4  # intervals at one level that make it held (chatter rarely gives three alike)
+HELD_NONE, HELD_ON, HELD_EDGE = 0, 1, 2  # readings of :func:`_held_reading`
+
+
+@njit(cache=True, nogil=True)
+def _z_raw(x, j, block, open_b, inv_b, q):
+    """Contact fraction of interval ``j >= 1`` from the raw samples (glitches kept)."""
+    return (u_at(x, j, block, open_b, inv_b) - q * u_at(x, j - 1, block, open_b, inv_b)) / (1.0 - q)
+
+
+@njit(cache=True, nogil=True)
+def _level_run(x, j0, step, level, tol, block, open_b, inv_b, q):
+    """Consecutive intervals from ``j0`` on, in direction ``step`` (+-1), at most
+    ``HELD_RUN``, whose fraction is ``level`` within ``tol``."""
+    n = x.shape[0]
+    run = 0
+    j = j0
+    while run < HELD_RUN and 1 <= j < n:
+        if abs(_z_raw(x, j, block, open_b, inv_b, q) - level) > tol:
+            break
+        run += 1
+        j += step
+    return run
+
+
+@njit(cache=True, nogil=True)
+def _held_reading(x, k, state, block, open_b, inv_b, q, thr, sdz):
+    """Reading of interval ``k``, whose contact fraction is partial, where the channel
+    holds a level between open and contact (a contact that half-conducts).
+
+    A held level: :data:`HELD_RUN` consecutive intervals at one partial fraction (within
+    ``max(6 sdz, HELD_TOL)``); real edges do not make that (a takeoff inside an interval
+    leaves the next one open, sub-sample chatter gives a few unequal fractions).  Read as
+    one contact: it starts where the level starts, ends where it ends, and the intervals
+    where the level meets open or contact are shares of the level, not of the gap.
+    Without this each held sample was read as a contact of its own.
+
+    Returns ``(reading, t)``: :data:`HELD_NONE` (no held level here: the usual reading),
+    :data:`HELD_ON` (in contact: the contact goes on, no edge) or :data:`HELD_EDGE` (one
+    edge at ``t``, samples: a landing from ``state`` 0, a takeoff from 1).  Fractions
+    are read from the raw samples, so that every pass, serial or in pieces, reads alike.
+    """
+    n = x.shape[0]
+    if k < 2 or k + 1 >= n:
+        return HELD_NONE, 0.0
+    tol = max(6.0 * sdz, HELD_TOL)
+    z = _z_raw(x, k, block, open_b, inv_b, q)
+    z_next = _z_raw(x, k + 1, block, open_b, inv_b, q)
+    ahead = z_next >= thr and z_next < 1.0 - thr
+    if ahead:
+        ahead = _level_run(x, k + 1, 1, z_next, tol, block, open_b, inv_b, q) >= HELD_RUN - 1
+    if state == 0:
+        if ahead and z <= z_next + tol:  # a held level starts in this interval
+            return HELD_EDGE, k - min(z / z_next, 1.0)
+        return HELD_NONE, 0.0
+    own = 1 + _level_run(x, k - 1, -1, z, tol, block, open_b, inv_b, q)
+    own += _level_run(x, k + 1, 1, z, tol, block, open_b, inv_b, q)
+    if own >= HELD_RUN or (ahead and z >= z_next - tol):
+        if z_next < thr:
+            return HELD_EDGE, float(k)  # the level ends with the interval
+        return HELD_ON, 0.0  # it goes on, or meets full contact
+    z_prev = _z_raw(x, k - 1, block, open_b, inv_b, q)
+    if z_prev >= thr and z_prev < 1.0 - thr and _level_run(
+        x, k - 1, -1, z_prev, tol, block, open_b, inv_b, q
+    ) >= HELD_RUN - 1:
+        if z_next < thr:  # the level ends inside this interval
+            return HELD_EDGE, k - 1.0 + min(z / z_prev, 1.0)
+        return HELD_ON, 0.0
+    return HELD_NONE, 0.0
+
+
 @njit(cache=True)
 def detect_edges_serial(x, block, open_b, inv_b, sdz_b, q, thr_min, thr_max, d_prior, glitch_k):
     """Single pass: glitch rejection, RC deconvolution, edge times with sub-sample precision.
@@ -401,7 +473,15 @@ def detect_edges_serial(x, block, open_b, inv_b, sdz_b, q, thr_min, thr_max, d_p
             k2[:m] = k_out[:m]
             t_out = t2
             k_out = k2
-        if state == 0:
+        held, t_held = HELD_NONE, 0.0
+        if thr <= z < 1.0 - thr:
+            held, t_held = _held_reading(x, k, state, block, open_b, inv_b, q, thr, sdz)
+        if held == HELD_EDGE:
+            t_out[m] = t_held
+            k_out[m] = LANDING if state == 0 else TAKEOFF
+            m += 1
+            state = 1 - state
+        elif state == 0:
             if z >= thr:
                 if z >= 1.0 - thr or (have_next and z_next >= thr_c):
                     t_out[m] = _rise_time(z, k, q, tau, sdz)
@@ -415,7 +495,7 @@ def detect_edges_serial(x, block, open_b, inv_b, sdz_b, q, thr_min, thr_max, d_p
                     t_out[m + 1] = tb
                     k_out[m + 1] = TAKEOFF
                     m += 2
-        else:
+        elif held == HELD_NONE:
             w = 1.0 - z
             if w >= thr:
                 if w >= 1.0 - thr or (have_next and 1.0 - z_next >= thr_c):
@@ -552,6 +632,10 @@ def edge_range(
                 break
             # iteration k in full (u_nxt is u[k+1], or u_cur at the last sample)
             state, u_clean, glitch, n_new, ta, ka, tb, kb, z = _full_iteration(
+                x,
+                block,
+                open_b,
+                inv_b,
                 k,
                 k + 1 < n,
                 state,
@@ -600,11 +684,13 @@ def edge_range(
 
 @njit(cache=True, nogil=True)
 def _full_iteration(
-    k, have_next, state, u_prev, u_cur, u_nxt, q, sdz, thr_min, thr_max, d_prior, glitch_k
+    x, block, open_b, inv_b, k, have_next, state, u_prev, u_cur, u_nxt, q, sdz, thr_min,
+    thr_max, d_prior, glitch_k,
 ):
     """One iteration of :func:`detect_edges_serial` (its loop body, same expressions).
 
-    ``u_nxt`` is ``u[k+1]`` (``u_cur`` when ``have_next`` is false).  Returns
+    ``u_nxt`` is ``u[k+1]`` (``u_cur`` when ``have_next`` is false); the samples and
+    levels are read again only where ``z`` is partial (:func:`_held_reading`).  Returns
     ``(state, u_clean, glitch, n_new, t_a, kind_a, t_b, kind_b, z)``: the new state, the
     cleaned ``u[k]`` (the next ``u_prev``), whether ``u[k]`` was a glitch, the 0, 1 or 2
     edges found in the interval ``(k-1, k]``, and its contact fraction ``z``.
@@ -633,7 +719,15 @@ def _full_iteration(
     tb = 0.0
     ka = LANDING
     kb = TAKEOFF
-    if state == 0:
+    held, t_held = HELD_NONE, 0.0
+    if thr <= z < 1.0 - thr:
+        held, t_held = _held_reading(x, k, state, block, open_b, inv_b, q, thr, sdz)
+    if held == HELD_EDGE:
+        ta = t_held
+        ka = LANDING if state == 0 else TAKEOFF
+        n_new = 1
+        state = 1 - state
+    elif state == 0:
         if z >= thr:
             if z >= 1.0 - thr or (have_next and z_next >= thr_c):
                 ta = _rise_time(z, k, q, tau, sdz)
@@ -642,7 +736,7 @@ def _full_iteration(
             else:
                 ta, tb = _pulse_in_interval(z, k, q, tau, d_prior)
                 n_new = 2
-    else:
+    elif held == HELD_NONE:
         w = 1.0 - z
         if w >= thr:
             ka = TAKEOFF

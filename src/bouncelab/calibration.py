@@ -31,7 +31,8 @@ from bouncelab.errors import BouncelabError, collected_warnings
 
 G_STANDARD = 9.80665  # m/s^2
 MIN_FLIGHT_S = 2e-3  # shorter flights: chatter, where contact compliance matters
-MIN_BOUNCES = 3
+MIN_BOUNCES = 2  # the fall and two flights: mu and e with one degree of freedom left
+CHECKED_BOUNCES = 3  # ... and from three on, the bounces alone check release_t_s
 
 
 def model_times(mu: float, e: float, h_m: float, n_flights: int, g: float = G_STANDARD):
@@ -208,11 +209,12 @@ def fall_from_bounces(flights_s, h_m: float, g: float = G_STANDARD, dt_s: float 
     the fall time, so the fall the model then predicts checks ``release_t_s`` (entered by
     hand). Its standard error is the linearised least-squares one, from the residuals'
     spread (at least the timing resolution ``dt_s / sqrt(12)``). None with fewer than
-    three flights or where the flights leave the two parameters unresolved.
+    :data:`CHECKED_BOUNCES` flights (two fix the parameters and leave nothing to
+    estimate an error from) or where the flights leave the two parameters unresolved.
     """
     fl = np.asarray(flights_s, dtype=np.float64)
     n = fl.size
-    if n < 3:
+    if n < CHECKED_BOUNCES:
         return None
 
     def model(p):
@@ -286,7 +288,7 @@ def calibrate_run(run_dir: str | Path, n_boot: int = 2000, seed: int = 0) -> dic
     Raises
     ------
     BouncelabError
-        Not a drop run; no contact after the release; fewer than three bounces.
+        Not a drop run; no contact after the release; fewer than two bounces.
     """
     with collected_warnings() as warnings:
         out = _calibrate_run(run_dir, n_boot, seed)
@@ -363,7 +365,18 @@ def _calibrate_run(run_dir: str | Path, n_boot: int, seed: int) -> dict:
             rec.path,
             f"only {flights.size} bounce(s) of at least {MIN_FLIGHT_S * 1e3:g} ms after the "
             f"first contact; friction and restitution need at least {MIN_BOUNCES} (the fall "
-            "and two successive flights to separate mu from e, one more to check them)",
+            "and two successive flights: their ratio separates mu from e); a higher drop "
+            "gives more",
+        )
+    if flights.size < CHECKED_BOUNCES:
+        log.warning(
+            "%s: only %d bounces of at least %g ms after the first contact: mu and e rest on "
+            "them and the fall with one degree of freedom to spare, and release_t_s is not "
+            "checked against the bounces (%d needed); a higher drop gives more",
+            rec.path,
+            flights.size,
+            MIN_FLIGHT_S * 1e3,
+            CHECKED_BOUNCES,
         )
     mu, e, resid = fit_drop(t_fall, flights, h, g)
     data = np.concatenate([[t_fall], flights])

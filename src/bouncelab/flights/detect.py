@@ -406,6 +406,8 @@ def pre_edge_ringing(x, t_edge, block, gap_b) -> tuple[float, int]:
 HELD_BAND = (0.1, 0.9)  # share of the gap a held level lies in (edges pass through)
 HELD_MIN_S = 1e-3  # shortest stretch between the levels reported as held, seconds
 HELD_TAU = 8.0  # ... and in RC time constants (an edge's tail crosses the band in < 2)
+HELD_SPREAD = 0.05  # largest standard deviation (share of the gap; or 3 noise sigmas) of
+# a held stretch: a level, not a hum's or a drift's passage through the band
 
 
 @dataclass(frozen=True)
@@ -423,19 +425,34 @@ class HeldStretches:
     longest_len: int
 
 
+def interference_removed(x: np.ndarray, sample_rate_hz: float, block: int = BLOCK) -> np.ndarray:
+    """The channel (n,) volts with its fast interference (mains hum) subtracted as the
+    detection subtracts it (:func:`remove_interference`, same levels and noise), or
+    ``x`` itself where none is found."""
+    s = _subsample(x)
+    lo0, hi0, _ = two_means(s)
+    if not sample_rate_hz or not hi0 > lo0:
+        return x
+    return remove_interference(x, lo0, hi0, _robust_noise(s), sample_rate_hz, block)[0]
+
+
 def held_stretches(x: np.ndarray, det: Detection, min_samples: int,
                    chunk: int = 1 << 20) -> HeldStretches:
     """Stretches of the channel held between the levels (a contact that half-conducts).
 
     Parameters
     ----------
-    x : (n,) samples, volts, as detected.
+    x : (n,) samples, volts, as the edge pass read them (:func:`interference_removed`).
     det : the :class:`Detection` of ``x`` (its block levels).
     min_samples : shortest stretch counted, samples.
     chunk : samples per pass (memory: a few float64 arrays of that size).
 
-    The edge pass reads such a level as one contact where it lies above the detection
-    threshold (:func:`kernels._held_level`); this only measures it, for a warning.
+    A stretch counts when it is also flat: its standard deviation at most
+    :data:`HELD_SPREAD` of the gap or 3 sigmas of its white noise (a mains hum of 20 % of the gap
+    keeps the open level in the band for half its cycles; a probe's such hum gave 2084
+    stretches before).  The edge pass reads such a level as one contact where it lies
+    above the detection threshold (:func:`kernels._held_reading`); this only measures
+    it, for a warning.
     """
     n = x.shape[0]
     centre = (np.arange(det.open_v.shape[0]) + 0.5) * det.block
@@ -449,6 +466,12 @@ def held_stretches(x: np.ndarray, det: Detection, min_samples: int,
     starts, ends = change[::2], change[1::2]
     length = ends - starts
     keep = length >= max(int(min_samples), 1)
+    for i in np.flatnonzero(keep):
+        k = np.arange(starts[i], ends[i])
+        u = (x[k] - np.interp(k, centre, det.open_v)) / np.interp(k, centre, gap)
+        # white noise from the first differences: blind to a slow hum or drift
+        sigma = 1.4826 * float(np.median(np.abs(np.diff(u)))) / np.sqrt(2.0)
+        keep[i] = float(np.std(u)) <= max(HELD_SPREAD, 3.0 * sigma)
     if not keep.any():
         return HeldStretches(0, 0, 0, 0)
     i = int(np.argmax(np.where(keep, length, -1)))

@@ -25,6 +25,7 @@ from bouncelab.flights.detect import (
     NoContactsError,
     detect_contacts,
     held_stretches,
+    interference_removed,
 )
 from bouncelab.flights.phase import (
     MIN_FREQUENCY_CYCLES,
@@ -530,6 +531,8 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
 def _warn_held_levels(x, det: Detection, fs: float, path, time_s) -> None:
     """Warn of stretches where the channel sits between its levels (partial conduction)."""
     min_samples = max(round(HELD_MIN_S * fs), math.ceil(HELD_TAU * det.tau_samples))
+    if det.interference_v.size and det.interference_v.max() > 0:
+        x = interference_removed(x, fs, det.block)  # a hum's crests are no held level
     held = held_stretches(x, det, min_samples)
     if held.count == 0:
         return

@@ -510,6 +510,9 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
                     rec.path,
                     100 * contact_share(det, n),
                 )
+    overlong = overlong_flights(flights)
+    if overlong.any():
+        logging.getLogger(__name__).warning("%s: %s", rec.path, overlong_line(flights, overlong))
     pressed = pressed_takeoffs(flights)
     if pressed.any():
         logging.getLogger(__name__).warning(
@@ -550,6 +553,36 @@ def _warn_held_levels(x, det: Detection, fs: float, path, time_s) -> None:
         1e3 * held.samples / fs,
         1e3 * held.longest_len / fs,
         t0,
+    )
+
+
+#: A flight longer than this (rad of the drive, about 41 periods) is no flight: at 30 Hz
+#: 1.4 s, a rise of 2.4 m. The circuit stayed open (a lead off, contacts too brief to
+#: see); such a "flight" once stopped the diagnosis ("T >= 512").
+OVERLONG_T_RAD = 256.0
+
+#: The words that open :func:`overlong_line` (the diagnosis says it once).
+OVERLONG_LINE = "flight(s) longer than"
+
+
+def overlong_flights(flights: pd.DataFrame) -> np.ndarray:
+    """(n,) bool: flights longer than :data:`OVERLONG_T_RAD` (the circuit open, not a
+    flight); all False for a drop run's table (no drive: ``T`` is NaN)."""
+    t = flights["T"].to_numpy(dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return t > OVERLONG_T_RAD
+
+
+def overlong_line(flights: pd.DataFrame, overlong: np.ndarray) -> str:
+    """One line on the flights of ``overlong`` (the longest, its time and step)."""
+    long = flights[overlong]
+    i = int(np.argmax(long["flight_s"].to_numpy()))
+    return (
+        f"{int(overlong.sum())} {OVERLONG_LINE} {OVERLONG_T_RAD / (2 * np.pi):.0f} drive "
+        f"periods (the longest {long['flight_s'].iloc[i]:.3g} s from t = "
+        f"{long['t_takeoff_s'].iloc[i]:.4g} s, step {int(long['step'].iloc[i])}): the "
+        "circuit stayed open far longer than the body can fly (a lead off, or contacts too "
+        "brief to see); kept in the flight table, left out of the diagnosis"
     )
 
 

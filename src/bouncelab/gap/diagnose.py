@@ -1298,6 +1298,8 @@ def diagnose_run(
             + (f" ({accel_notes[0]})" if accel_notes else ""),
         )
     fixed = accel_fixed(accel) if fix_accel else None
+    where = flights if isinstance(flights, (str, Path)) else run.yaml_path.parent
+    table, overlong = without_overlong(table, qc, where)
     read_s = time.perf_counter() - t0
 
     def diagnosis(with_seed: int) -> dict:
@@ -1362,7 +1364,9 @@ def diagnose_run(
     # held at the reading, a fitted s cannot disagree with it
     compared = [] if fix_accel else accel_warnings(accel, result)
     drive = drive_warnings(run, qc)
-    result["input_warnings"] = drive + extraction_warnings(qc, bool(drive)) + accel_notes + compared
+    result["input_warnings"] = (
+        drive + extraction_warnings(qc, bool(drive)) + overlong + accel_notes + compared
+    )
     result["warnings"] = result["input_warnings"] + result["warnings"]
     if include_timings:
         # the whole call: reading the run and every seed's diagnosis, retries included
@@ -1548,6 +1552,23 @@ def _qc_beside(flights: str | Path) -> pd.DataFrame | None:
 
     path = qc_path_for(flights)
     return read_table(path) if path.is_file() else None
+
+
+def without_overlong(
+    table: pd.DataFrame, qc: pd.DataFrame | None, where
+) -> tuple[pd.DataFrame, list[str]]:
+    """The flight table without the flights longer than
+    :data:`bouncelab.flights.extract.OVERLONG_T_RAD` (the circuit open, not a flight), and
+    the warning on them (naming ``where``) unless the extraction's warnings in ``qc``
+    already say it."""
+    from bouncelab.flights.extract import OVERLONG_LINE, overlong_flights, overlong_line
+
+    overlong = overlong_flights(table)
+    if not overlong.any():
+        return table, []
+    said = any(OVERLONG_LINE in w for w in extraction_warnings(qc))
+    line = [] if said else [f"{where}: {overlong_line(table, overlong)}"]
+    return table[~overlong].reset_index(drop=True), line
 
 
 def extraction_warnings(qc: pd.DataFrame | None, drive_warned: bool = False) -> list[str]:

@@ -242,6 +242,8 @@ def test_openings_of_a_resting_contact_are_warned_about(make_rig, tmp_path, capl
     print(f"{dropouts} openings: {n_pressed} pressed takeoffs")
     assert (n_pressed > 0) == bool(dropouts) and n_pressed <= dropouts
     assert ("pushed the body up" in caplog.text) == bool(dropouts)
+    if dropouts:  # the other readings of many such takeoffs: levels, or drive phases off
+        assert "contact_level" in caplog.text and "drive_phase_offset_rad" in caplog.text
 
 
 def test_a_side_of_a_gain_step_without_rests_keeps_the_rc(make_rig, tmp_path):

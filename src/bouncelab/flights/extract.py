@@ -515,14 +515,17 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         logging.getLogger(__name__).warning("%s: %s", rec.path, overlong_line(flights, overlong))
     pressed = pressed_takeoffs(flights)
     if pressed.any():
+        from_rest = int((flights["contact_before_s"].to_numpy(dtype=np.float64) > PRESSED_REST_S).sum())
         logging.getLogger(__name__).warning(
-            "%s: %d takeoff(s) from rest while the plate pushed the body up (sin of the "
-            "drive phase below %g after a contact over %g ms; median flight %.3g ms): the "
-            "continuity circuit opening while the body rests (a dirty or loose contact), "
-            "or, where they are many, contacts and flights read the wrong way round (set "
-            "contact_level in run.yaml)",
+            "%s: %d of %d takeoff(s) from rest while the plate pushed the body up (sin of "
+            "the drive phase below %g after a contact over %g ms; median flight %.3g ms): "
+            "the continuity circuit opening while the body rests (a dirty or loose "
+            "contact); where they are most, contacts and flights read the wrong way round "
+            "(set contact_level in run.yaml) or a drive channel inverted or delayed (its "
+            "phases off: drive_phase_offset_rad in run.yaml)",
             rec.path,
             int(pressed.sum()),
+            from_rest,
             PRESSED_SIN,
             1e3 * PRESSED_REST_S,
             1e3 * float(flights["flight_s"][pressed].median()),

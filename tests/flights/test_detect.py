@@ -242,6 +242,19 @@ def test_a_causal_front_end_is_not_read_as_ringing():
     assert 0.5 < ring / (0.002 / 5.0) < 2.0
 
 
+def test_a_channel_without_noise_reads_no_rounding_as_ringing(monkeypatch):
+    """A channel with no noise (a black-box probe's, clipped flat at a sound card's full
+    scale) has a robust noise of 0, and a ringing of 1.5e-15 of the gap (float32
+    rounding) passed as 5 times it: extract warned of an anti-alias filter of that size.
+    Ringing counts from 0.1 % of the gap (``RING_FLOOR``)."""
+    c = bouncing_contacts(4.0, seed=4)
+    x, _ = continuity(c, 4.0, tau_s=10e-6, noise_v=0.0)
+    monkeypatch.setattr(D, "pre_edge_ringing", lambda *a: (1.5e-15, 500))
+    assert detect_contacts(x).ringing == 0.0
+    monkeypatch.setattr(D, "pre_edge_ringing", lambda *a: (2 * D.RING_FLOOR, 500))
+    assert detect_contacts(x).ringing == 2 * D.RING_FLOOR
+
+
 def test_a_hum_is_not_read_as_ringing():
     """A causal channel (gap 5 V, noise 2 mV) under a 50 Hz hum of 5 % of the gap: the
     hum's slope over the samples before an edge lies on a straight line, and the ringing

@@ -175,3 +175,21 @@ def test_the_documented_extension_keys_are_not_unknown(make_run):
     run_dir = make_run("csv", yaml_overrides={"drive_phase_offset_rad": 0.3, "operator": "ana"})
     (warning,) = [w for w in validate_run(run_dir).warnings if "unknown keys" in w]
     assert warning.endswith(": operator")
+
+
+@pytest.mark.parametrize("fmt", ["wav", "flac", "csv"])
+def test_a_channel_clipped_at_full_scale_is_a_warning(make_run, fmt):
+    """A contact level 30 % beyond a sound card's full scale is read flat there (a black-
+    box probe's: flight times 13 us short, median, and nothing said); validate names the
+    channel, the side and the share.  A CSV's range is unknown: nothing said; nor for
+    the unclipped signals of every format (test above)."""
+    sig = known_signals()
+    sig["continuity"] = np.where(sig["continuity"] > 0.5, 1.3, 0.05)  # beyond +1 V
+    run_dir = make_run(fmt, signals=sig)
+    lines = [w for w in validate_run(run_dir).warnings if "clipped" in w]
+    if fmt == "csv":
+        assert lines == []
+    else:
+        share = float(np.mean(sig["continuity"] > 1.0))
+        assert len(lines) == 1 and lines[0].startswith("continuity channel at +1 V")
+        assert f"{100 * share:.2g} % of its samples" in lines[0]

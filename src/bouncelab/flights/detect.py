@@ -349,6 +349,9 @@ SLOW_Q, SLOW_SDZ_CAP = 0.3, 2.5
 RING_LAGS = (2, 3, 4)
 RING_LEVEL_LAGS = tuple(range(5, 13))
 RING_NOISE, RING_MIN_EDGES, RING_MAX_EDGES = 5.0, 50, 4096
+#: ... and at least this share of the gap: a channel without noise (clipped flat at a
+#: sound card's full scale) read 1.5e-15 as ringing, above 5 x its zero noise
+RING_FLOOR = 1e-3
 
 
 def _line_weights(src, dst) -> np.ndarray:
@@ -1059,7 +1062,8 @@ def _detect(
     # read as ringing, 4-5 x the noise, on gain steps under a hum
     ring, n_ring = pre_edge_ringing(x_read, t, block, gap)
     ringing = 0.0
-    if n_ring >= RING_MIN_EDGES and ring > RING_NOISE * noise / float(np.median(np.abs(gap))):
+    ring_min = max(RING_NOISE * noise / float(np.median(np.abs(gap))), RING_FLOOR)
+    if n_ring >= RING_MIN_EDGES and ring > ring_min:
         # a ringing front end: its lobes are noise to the threshold and the glitch rule
         ringing = ring
         sdz = np.maximum(sdz, ring)

@@ -21,6 +21,9 @@ from bouncelab.runs.spec import EXTENSION_KEYS, ROLES, Run, load_run
 
 STEP_COLUMNS = ("step", "gamma", "t_start_s", "t_end_s", "n_cycles")
 GAP_FACTOR = 1.5
+#: An audio channel within ``CLIP_TOL`` of its full scale (8-bit's largest code is
+#: 127/128 of it) in at least ``CLIP_SHARE`` of its samples is clipped.
+CLIP_TOL, CLIP_SHARE = 0.01, 1e-3
 
 
 def step_table(run: Run, duration_s: float) -> pd.DataFrame:
@@ -284,6 +287,7 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame, problem: str | None
                 f"input (a sound card's; corner {1 / (2 * np.pi * tau):.3g} Hz): "
                 "extract and calibrate undo it (docs/flights.md)"
             )
+    out.extend(clipped_channels(run, rec))
     drive = rec.channels.get("drive")
     if run.kind == "sweep" and drive is not None and run.drive_frequency_hz and len(steps):
         from bouncelab.flights.extract import drive_frequencies
@@ -294,6 +298,29 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame, problem: str | None
         warning = drive_frequency_warning(list(measured.values()), f)
         if warning:
             out.append(warning)
+    return out
+
+
+def clipped_channels(run: Run, rec: Recording) -> list[str]:
+    """One line per audio channel side held at the input's full scale (``full_scale_v``):
+    a level beyond the sound card's range, read flat. The edges on that side lose
+    their shape (a probe's contact level 30 % beyond full scale: flight times 13 us
+    short, median, at 20 kHz). [] for other formats, whose range is not known."""
+    if not run.is_audio:
+        return []
+    out = []
+    full = float(run.full_scale_v)
+    for role, x in rec.channels.items():
+        if not x.size:
+            continue
+        for sign, name in ((1.0, "+"), (-1.0, "-")):
+            share = np.count_nonzero(sign * x >= full * (1.0 - CLIP_TOL)) / x.size
+            if share >= CLIP_SHARE:
+                out.append(
+                    f"{role} channel at {name}{full:g} V, the input's full scale, in "
+                    f"{100 * share:.2g} % of its samples: clipped, a level beyond the input's "
+                    "range read flat, which shifts edge times (lower the input gain)"
+                )
     return out
 
 

@@ -744,6 +744,52 @@ def _in_order(det: Detection) -> Detection:
     return replace(det, t_edge=t[keep], kind=kind[keep])
 
 
+#: A switch's contact bounce: openings shorter than ``BOUNCE_MAX`` of a sample interval
+#: that start within ``BOUNCE_WINDOW_S`` of the landing that ended a flight at least
+#: ``BOUNCE_RATIO`` times longer (:func:`without_switch_bounce`).
+BOUNCE_MAX, BOUNCE_WINDOW_S, BOUNCE_RATIO = 0.9, 1e-4, 100.0
+
+
+def without_switch_bounce(det: Detection, fs: float) -> tuple[Detection, int]:
+    """``det`` without the openings of a switch's contact bounce, and their count.
+
+    A mechanical contact that closes may open again for microseconds, two to four times
+    within 0.1 ms (a black-box probe's 3-15 us openings: 1572 flights for 825, none
+    warned of). Such an opening is shorter than a sample (``BOUNCE_MAX``) and follows,
+    within ``BOUNCE_WINDOW_S``, the landing of a flight at least ``BOUNCE_RATIO`` times
+    longer (the last flight of at least ``BOUNCE_MAX``). A body's rebound is not that
+    much shorter than the flight before it unless its restitution is below 0.01, and
+    then below what the sampling resolves anyway. Its two edges go and the contacts
+    around it merge. ``fs``: sampling rate, Hz (the window is in seconds). On the
+    shipped runs and the 80 independent and compliant recordings: none.
+    """
+    t, kind = det.t_edge, det.kind
+    take = np.flatnonzero(kind[:-1] == kernels.TAKEOFF)
+    take = take[kind[take + 1] == kernels.LANDING]
+    if take.size == 0:
+        return det, 0
+    length = t[take + 1] - t[take]
+    short = length < BOUNCE_MAX
+    if not short.any():
+        return det, 0
+    # the last flight of at least BOUNCE_MAX at or before each flight (-1: none)
+    ref = np.maximum.accumulate(np.where(short, -1, np.arange(take.size)))
+    has_ref = ref >= 0
+    ref_c = np.maximum(ref, 0)
+    bounce = (
+        short
+        & has_ref
+        & (t[take] - t[take[ref_c] + 1] <= BOUNCE_WINDOW_S * fs)
+        & (length[ref_c] >= BOUNCE_RATIO * length)
+    )
+    if not bounce.any():
+        return det, 0
+    keep = np.ones(t.shape[0], dtype=bool)
+    keep[take[bounce]] = False
+    keep[take[bounce] + 1] = False
+    return replace(det, t_edge=t[keep], kind=kind[keep]), int(bounce.sum())
+
+
 def _detect_split(
     x,
     contact_level,

@@ -18,6 +18,9 @@ import pandas as pd
 from bouncelab.errors import collected_warnings
 from bouncelab.flights.coupling import ac_coupling_tau, undo_ac_coupling
 from bouncelab.flights.detect import (
+    BOUNCE_MAX,
+    BOUNCE_RATIO,
+    BOUNCE_WINDOW_S,
     HELD_BAND,
     HELD_MIN_S,
     HELD_TAU,
@@ -26,6 +29,7 @@ from bouncelab.flights.detect import (
     detect_contacts,
     held_stretches,
     interference_removed,
+    without_switch_bounce,
 )
 from bouncelab.flights.phase import (
     MIN_FREQUENCY_CYCLES,
@@ -450,6 +454,8 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             det = None  # the body rests all along: no flights, and that is right
         else:
             raise
+    if det is not None:
+        det = _without_bounce(det, fs, rec.path)
     if det is not None and det.ringing > 0:
         logging.getLogger(__name__).warning(
             "%s: the continuity channel moves before its edges (%.2g of the level gap, "
@@ -498,6 +504,7 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
                 # from rest refute this reading and confirm that one
                 level = "low" if det.contact_high else "high"
                 other = detect_contacts(x, level, rest, opened, path=rec.path, sample_rate_hz=fs)
+                other = _without_bounce(other, fs, rec.path)
                 other_flights = flights_of(other)
                 if polarity_refuted(flights, other_flights, freq):
                     det, flights = other, other_flights
@@ -532,6 +539,23 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         )
     qc = _qc_table(run.run_id, steps, det, fs, time_s, flights, fits, drive is not None, freqs)
     return flights, qc
+
+
+def _without_bounce(det: Detection, fs: float, path) -> Detection:
+    """:func:`without_switch_bounce`, with a warning naming the file where it removes any."""
+    det, n = without_switch_bounce(det, fs)
+    if n:
+        logging.getLogger(__name__).warning(
+            "%s: %d opening(s) shorter than %g of a sample within %g ms of a landing after "
+            "a flight %g times longer or more, read as a switch's contact bounce: left out "
+            "(the contacts around each merged)",
+            path,
+            n,
+            BOUNCE_MAX,
+            1e3 * BOUNCE_WINDOW_S,
+            BOUNCE_RATIO,
+        )
+    return det
 
 
 def _warn_held_levels(x, det: Detection, fs: float, path, time_s) -> None:

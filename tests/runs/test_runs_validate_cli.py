@@ -193,3 +193,22 @@ def test_a_channel_clipped_at_full_scale_is_a_warning(make_run, fmt):
         share = float(np.mean(sig["continuity"] > 1.0))
         assert len(lines) == 1 and lines[0].startswith("continuity channel at +1 V")
         assert f"{100 * share:.2g} % of its samples" in lines[0]
+
+
+def test_a_jump_of_the_time_axis_is_a_warning(make_run):
+    """Samples missing (a DAQ's buffer overrun: time_s jumps 5 ms after 1.5 s, 2 ms
+    after 3 s) were passed over in silence by validate and extract (a black-box probe's
+    CSV; the flights across a jump are left out). Both now say where and how much."""
+    from bouncelab.flights.extract import extract_run
+
+    n = int(FS * DURATION_S)
+    time_s = np.arange(n) / FS
+    time_s[int(1.5 * FS) :] += 5e-3
+    time_s[int(3.0 * FS) :] += 2e-3
+    run_dir = make_run("csv", time_s=time_s)
+    lines = [w for w in validate_run(run_dir).warnings if "jumps by" in w]
+    assert len(lines) == 1 and "at 2 place(s), 7 ms missing in all" in lines[0]
+    assert "the largest 5.5 ms after t = 1.4995 s" in lines[0]
+    _, qc = extract_run(run_dir)
+    assert any("rec.csv: time_s jumps by" in w for w in qc.attrs["warnings"])
+    assert not [w for w in validate_run(make_run("csv", name="regular")).warnings if "jumps" in w]

@@ -407,7 +407,7 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
 def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     """:func:`extract_run` without the collection of its warnings."""
     from bouncelab.runs import load_run, read_recording, step_table
-    from bouncelab.runs.validate import steps_after_end, steps_before_start
+    from bouncelab.runs.validate import steps_after_end, steps_before_start, time_gaps
 
     run = load_run(run_dir)
     rec = read_recording(run, roles=("continuity", "drive"))
@@ -441,6 +441,9 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         ):
             if misplaced:
                 logging.getLogger(__name__).warning("%s: %s", run.yaml_path, misplaced)
+    gaps = time_gaps(time_s, fs)
+    if gaps:
+        logging.getLogger(__name__).warning("%s: %s", rec.path, gaps)
     rest, opened = [], []
     for row in steps.itertuples(index=False):
         if run.kind == "sweep" and row.gamma < 1.0:

@@ -287,6 +287,9 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame, problem: str | None
                 f"input (a sound card's; corner {1 / (2 * np.pi * tau):.3g} Hz): "
                 "extract and calibrate undo it (docs/flights.md)"
             )
+    gaps = time_gaps(rec.time_s, rec.fs)
+    if gaps:
+        out.append(gaps)
     out.extend(clipped_channels(run, rec))
     drive = rec.channels.get("drive")
     if run.kind == "sweep" and drive is not None and run.drive_frequency_hz and len(steps):
@@ -299,6 +302,25 @@ def _warnings(run: Run, rec: Recording, steps: pd.DataFrame, problem: str | None
         if warning:
             out.append(warning)
     return out
+
+
+def time_gaps(time_s: np.ndarray | None, fs: float) -> str | None:
+    """One line on the jumps of a ``time_s`` axis longer than 1.5 sample intervals
+    (samples missing: a DAQ's buffer overrun), None without any. The extraction leaves
+    out the flights across them (:func:`bouncelab.flights.extract.gap_mask`)."""
+    if time_s is None or time_s.shape[0] < 2:
+        return None
+    step = np.diff(time_s)
+    jumps = np.flatnonzero(step > 1.5 / fs)
+    if jumps.size == 0:
+        return None
+    j = jumps[np.argmax(step[jumps])]
+    return (
+        f"time_s jumps by more than 1.5 sample intervals at {jumps.size} place(s), "
+        f"{1e3 * float(np.sum(step[jumps] - 1.0 / fs)):.3g} ms missing in all (the "
+        f"largest {1e3 * float(step[j]):.3g} ms after t = {float(time_s[j]):.6g} s): "
+        "samples missing there; flights across a jump are left out"
+    )
 
 
 def clipped_channels(run: Run, rec: Recording) -> list[str]:

@@ -333,7 +333,9 @@ def _held_reading(x, k, state, block, open_b, inv_b, q, thr, sdz):
     leaves the next one open, sub-sample chatter gives a few unequal fractions).  Read as
     one contact: it starts where the level starts, ends where it ends, and the intervals
     where the level meets open or contact are shares of the level, not of the gap.
-    Without this each held sample was read as a contact of its own.
+    Without this each held sample was read as a contact of its own.  Most edges have
+    no partial neighbour (full contact on one side, open on the other) and leave after
+    reading four samples; the runs are read only beside a partial neighbour.
 
     Returns ``(reading, t)``: :data:`HELD_NONE` (no held level here: the usual reading),
     :data:`HELD_ON` (in contact: the contact goes on, no edge) or :data:`HELD_EDGE` (one
@@ -343,10 +345,20 @@ def _held_reading(x, k, state, block, open_b, inv_b, q, thr, sdz):
     n = x.shape[0]
     if k < 2 or k + 1 >= n:
         return HELD_NONE, 0.0
-    tol = max(6.0 * sdz, HELD_TOL)
-    z = _z_raw(x, k, block, open_b, inv_b, q)
-    z_next = _z_raw(x, k + 1, block, open_b, inv_b, q)
+    u_before = u_at(x, k - 1, block, open_b, inv_b)
+    u_here = u_at(x, k, block, open_b, inv_b)
+    u_after = u_at(x, k + 1, block, open_b, inv_b)
+    z = (u_here - q * u_before) / (1.0 - q)
+    z_next = (u_after - q * u_here) / (1.0 - q)
     ahead = z_next >= thr and z_next < 1.0 - thr
+    if not ahead:
+        if state == 0:
+            return HELD_NONE, 0.0
+        # in contact a held level needs a partial neighbour: most edges have none
+        z_prev = (u_before - q * u_at(x, k - 2, block, open_b, inv_b)) / (1.0 - q)
+        if not (z_prev >= thr and z_prev < 1.0 - thr):
+            return HELD_NONE, 0.0
+    tol = max(6.0 * sdz, HELD_TOL)
     if ahead:
         ahead = _level_run(x, k + 1, 1, z_next, tol, block, open_b, inv_b, q) >= HELD_RUN - 1
     if state == 0:

@@ -315,26 +315,33 @@ def test_a_level_held_between_open_and_contact_is_one_contact(level, tau_s):
     np.testing.assert_allclose(t * FS, t0 * FS, atol=0.01 if tau_s == 0 else 0.5)
 
 
-def test_a_held_level_is_warned_of_naming_the_file(tmp_path):
-    """extract names the file, the stretches and the longest, and reads one contact; a
-    mains hum of 20 % of the gap is not taken for held levels (a probe's hum gave 2084
-    'stretches' before the warning read the channel with the hum subtracted)."""
+def extracted_drop(folder, contacts, added=0.0):
+    """:func:`extract_run` of a 4-s drop run (NPZ, 10-us RC) of ``contacts`` (s), with
+    ``added`` volts on the channel: (flights, qc)."""
     from flights_synth import write_npz_run
 
     from bouncelab.flights.extract import extract_run
 
+    x, _ = continuity(contacts, 4.0, tau_s=10e-6, noise_v=0.01, seed=5)
+    run = write_npz_run(
+        folder, {"continuity": x + added}, kind="drop", contact_level="low",
+        mass_kg=0.25, drop_height_m=0.05, release_t_s=0.005,
+    )  # fmt: skip
+    return extract_run(run)
+
+
+def test_a_held_level_is_warned_of_naming_the_file(tmp_path):
+    """extract names the file, the stretches and the longest, and reads one contact; a
+    mains hum of 20 % of the gap is not taken for held levels (a probe's hum gave 2084
+    'stretches' before the warning read the channel with the hum subtracted)."""
     c = bouncing_contacts(4.0, seed=4)
     held, starts = held_in_longest_flights(c, 0.4, hold_s=5e-3, count=2)
-    tables = {}
-    for name, contacts in (("clean", c), ("dirty", held), ("hum", c)):
-        x, _ = continuity(contacts, 4.0, tau_s=10e-6, noise_v=0.01, seed=5)
-        if name == "hum":  # 50 Hz at 20 % of the gap: its crests are no held level
-            x = x + 1.0 * np.sin(2 * np.pi * 50.0 * np.arange(x.size) / FS)
-        run = write_npz_run(
-            tmp_path / name, {"continuity": x}, kind="drop", contact_level="low",
-            mass_kg=0.25, drop_height_m=0.05, release_t_s=0.005,
-        )  # fmt: skip
-        tables[name] = extract_run(run)
+    hum = 1.0 * np.sin(2 * np.pi * 50.0 * np.arange(int(4.0 * FS)) / FS)  # 20 % of the gap
+    tables = {
+        "clean": extracted_drop(tmp_path / "clean", c),
+        "dirty": extracted_drop(tmp_path / "dirty", held),
+        "hum": extracted_drop(tmp_path / "hum", c, added=hum),  # its crests: no held level
+    }
     flights, qc = tables["dirty"]
     lines = [w for w in qc.attrs["warnings"] if "sits between its levels" in w]
     assert len(lines) == 1, qc.attrs["warnings"]
@@ -397,19 +404,11 @@ def test_a_switch_bounce_after_landings_is_left_out():
 
 
 def test_extract_leaves_a_switch_bounce_out_and_says_so(tmp_path):
-    from flights_synth import write_npz_run
-
-    from bouncelab.flights.extract import extract_run
-
     c = bouncing_contacts(4.0, seed=4, contact_s=300e-6)
-    tables = {}
-    for name, contacts in (("clean", c), ("bounce", with_switch_bounce(c)[0])):
-        x, _ = continuity(contacts, 4.0, tau_s=10e-6, noise_v=0.01, seed=5)
-        run = write_npz_run(
-            tmp_path / name, {"continuity": x}, kind="drop", contact_level="low",
-            mass_kg=0.25, drop_height_m=0.05, release_t_s=0.005,
-        )  # fmt: skip
-        tables[name] = extract_run(run)
+    tables = {
+        "clean": extracted_drop(tmp_path / "clean", c),
+        "bounce": extracted_drop(tmp_path / "bounce", with_switch_bounce(c)[0]),
+    }
     flights, qc = tables["bounce"]
     lines = [w for w in qc.attrs["warnings"] if "contact bounce" in w]
     assert len(lines) == 1 and "rec.npz" in lines[0]

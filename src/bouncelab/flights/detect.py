@@ -439,8 +439,9 @@ def interference_removed(x: np.ndarray, sample_rate_hz: float, block: int = BLOC
     return remove_interference(x, lo0, hi0, _robust_noise(s), sample_rate_hz, block)[0]
 
 
-def held_stretches(x: np.ndarray, det: Detection, min_samples: int,
-                   chunk: int = 1 << 20) -> HeldStretches:
+def held_stretches(
+    x: np.ndarray, det: Detection, min_samples: int, chunk: int = 1 << 20
+) -> HeldStretches:
     """Stretches of the channel held between the levels (a contact that half-conducts).
 
     Parameters

@@ -525,7 +525,9 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
         logging.getLogger(__name__).warning("%s: %s", rec.path, overlong_line(flights, overlong))
     pressed = pressed_takeoffs(flights)
     if pressed.any():
-        from_rest = int((flights["contact_before_s"].to_numpy(dtype=np.float64) > PRESSED_REST_S).sum())
+        from_rest = int(
+            (flights["contact_before_s"].to_numpy(dtype=np.float64) > PRESSED_REST_S).sum()
+        )
         logging.getLogger(__name__).warning(
             "%s: %d of %d takeoff(s) from rest while the plate pushed the body up (sin of "
             "the drive phase below %g after a contact over %g ms; median flight %.3g ms): "

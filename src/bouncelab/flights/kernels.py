@@ -372,9 +372,11 @@ def _held_reading(x, k, state, block, open_b, inv_b, q, thr, sdz):
             return HELD_EDGE, float(k)  # the level ends with the interval
         return HELD_ON, 0.0  # it goes on, or meets full contact
     z_prev = _z_raw(x, k - 1, block, open_b, inv_b, q)
-    if z_prev >= thr and z_prev < 1.0 - thr and _level_run(
-        x, k - 1, -1, z_prev, tol, block, open_b, inv_b, q
-    ) >= HELD_RUN - 1:
+    if (
+        z_prev >= thr
+        and z_prev < 1.0 - thr
+        and _level_run(x, k - 1, -1, z_prev, tol, block, open_b, inv_b, q) >= HELD_RUN - 1
+    ):
         if z_next < thr:  # the level ends inside this interval
             return HELD_EDGE, k - 1.0 + min(z / z_prev, 1.0)
         return HELD_ON, 0.0
@@ -696,8 +698,22 @@ def edge_range(
 
 @njit(cache=True, nogil=True)
 def _full_iteration(
-    x, block, open_b, inv_b, k, have_next, state, u_prev, u_cur, u_nxt, q, sdz, thr_min,
-    thr_max, d_prior, glitch_k,
+    x,
+    block,
+    open_b,
+    inv_b,
+    k,
+    have_next,
+    state,
+    u_prev,
+    u_cur,
+    u_nxt,
+    q,
+    sdz,
+    thr_min,
+    thr_max,
+    d_prior,
+    glitch_k,
 ):
     """One iteration of :func:`detect_edges_serial` (its loop body, same expressions).
 

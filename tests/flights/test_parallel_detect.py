@@ -242,7 +242,7 @@ def test_identical_to_serial_on_rig_recording(make_rig):
 
 
 def test_held_levels_cut_anywhere_read_as_serial():
-    """Held levels (a contact that half-conducts: :func:`kernels._held_level` reads up to
+    """Held levels (a contact that half-conducts: :func:`kernels._held_reading` reads up to
     three intervals on each side of the sample) with cuts at every sample of each hold
     and around it, without warm-up: the serial pass's edges, bit for bit."""
     from test_detect import held_in_longest_flights

@@ -552,8 +552,8 @@ def _without_bounce(det: Detection, fs: float, path) -> Detection:
     if n:
         logging.getLogger(__name__).warning(
             "%s: %d opening(s) shorter than %g of a sample within %g ms of a landing after "
-            "a flight %g times longer or more, read as a switch's contact bounce: left out "
-            "(the contacts around each merged)",
+            "a flight %g times longer or more, read as a switch's contact bounce (or a "
+            "rebound too small to resolve): left out, the contacts around each merged",
             path,
             n,
             BOUNCE_MAX,
@@ -575,8 +575,9 @@ def _warn_held_levels(x, det: Detection, fs: float, path, time_s) -> None:
     logging.getLogger(__name__).warning(
         "%s: the continuity channel sits between its levels (%.0f-%.0f %% of the gap) in "
         "%d stretch(es) of %.3g ms or more, %.3g ms in all (longest %.3g ms at t = %.4g s): "
-        "a contact that half-conducts (dirty or loose)? Each is read as one contact where "
-        "it lies above the detection threshold, else as flight",
+        "a contact that half-conducts (dirty or loose), or a body chattering faster than "
+        "the sampling (on a plate that vibrates at random)? Each is read as one contact "
+        "where it lies above the detection threshold, else as flight",
         path,
         100 * HELD_BAND[0],
         100 * HELD_BAND[1],

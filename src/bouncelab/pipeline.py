@@ -20,11 +20,12 @@ def check_run_verdict(run_dir) -> dict:
     "info": validate's dict or {}, "no_diagnosis": why a sweep cannot be diagnosed, or
     ""}``. The workflow records this instead of failing, so that one broken run cannot
     stop the report; the run's own jobs still fail with the same error.  A sweep too
-    short to diagnose (:func:`bouncelab.gap.fit.too_few_steps`) passes, and gets every
+    short to diagnose (:func:`bouncelab.gap.fit.too_few_steps`, or whose steps end before
+    their flights settle, :func:`bouncelab.gap.fit.unsettled_steps`) passes, and gets every
     product but the diagnosis. A run that meets the contract but has no contacts to
     extract (``ValidationReport.extract_problem``) is refused with that problem.
     """
-    from bouncelab.gap.fit import too_few_steps
+    from bouncelab.gap.fit import too_few_steps, unsettled_steps
     from bouncelab.runs import validate_run
 
     run_dir = Path(run_dir)
@@ -37,7 +38,11 @@ def check_run_verdict(run_dir) -> dict:
         # or the report waits for its products (a black-box probe's silent channel)
         return _refused(run_dir, f"{report.run.recording_path}: {report.extract_problem}")
     info = json.loads(json.dumps(report.to_dict(), default=str))
-    short = too_few_steps(info.get("n_steps") or 0) if info.get("kind") == "sweep" else None
+    short = None
+    if info.get("kind") == "sweep":
+        short = too_few_steps(info.get("n_steps") or 0) or unsettled_steps(
+            report.run, float(info["duration_s"])
+        )
     return {
         "ok": True,
         "run": run_dir.name,

@@ -66,6 +66,7 @@ from bouncelab.gap.fit import (
     problem_cycles,
     resolution_T,
     too_few_steps,
+    unsettled_steps,
     warned_params,
 )
 from bouncelab.gap.regions import segment_regions
@@ -567,6 +568,9 @@ def diagnose_flights(
     short = too_few_steps(len(problem.steps), fit_settings.heldout_every)
     if short:
         raise BouncelabError(run.yaml_path, short)
+    unsettled = unsettled_steps(run, duration_s, fit_settings.heldout_every)
+    if unsettled:
+        raise BouncelabError(run.yaml_path, unsettled)
     floor = problem.mean(problem.floor, problem.heldout)
 
     fixed = {k: float(v) for k, v in (fixed or {}).items()}

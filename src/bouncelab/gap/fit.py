@@ -496,6 +496,27 @@ def too_few_steps(n_steps: int, every: int = 3) -> str | None:
     return None
 
 
+def unsettled_steps(run, duration_s: float, every: int = 3) -> str | None:
+    """Why a run whose steps end before their flights settle cannot be diagnosed, or None.
+
+    The diagnosis compares settled flights (after ``settle_cycles`` of each step); where
+    too few steps outlast them, data and model alike have nothing to compare and every
+    model "explains" the run at a gap of 0 (a black-box probe's 8-cycle steps under the
+    default 10: nothing selected, explained, for friction 0.2).
+    """
+    from bouncelab.runs.validate import step_table
+
+    steps = step_table(run, duration_s)
+    n_long = int((steps["n_cycles"] > run.settle_cycles).sum())
+    if too_few_steps(n_long, every) is None:
+        return None
+    return (
+        f"only {n_long} of {len(steps)} Gamma steps last longer than settle_cycles "
+        f"({run.settle_cycles} drive cycles): too few with settled flights to compare "
+        "(3 needed); lower settle_cycles in run.yaml, or record longer steps"
+    )
+
+
 def continuation_gamma(problem: Problem) -> float | None:
     """Nominal Gamma up to which a joint fit of ``problem`` first searches
     (:func:`fit_model`'s ``continuation``), or None when the run does not call for it.

@@ -9,6 +9,7 @@ import pytest
 from runs_fixtures import DRIVE_HZ, DURATION_S, FORMATS, FS, STEPS, known_signals, tree_digest
 
 from bouncelab.cli import main
+from bouncelab.errors import BouncelabError
 from bouncelab.runs import load_run, read_recording, step_table, validate_run
 
 
@@ -212,3 +213,22 @@ def test_a_jump_of_the_time_axis_is_a_warning(make_run):
     _, qc = extract_run(run_dir)
     assert any("rec.csv: time_s jumps by" in w for w in qc.attrs["warnings"])
     assert not [w for w in validate_run(make_run("csv", name="regular")).warnings if "jumps" in w]
+
+
+@pytest.mark.parametrize("fmt", ["wav", "npz"])
+def test_continuity_and_drive_swapped_are_refused_with_one_line(make_run, fmt):
+    """A probe's WAV with the two channels swapped against run.yaml was extracted into
+    2045 invented flights and diagnosed, every command exiting 0. The continuity channel
+    sits at two levels and a drive does not: validate names it (extract will fail) and
+    extract refuses with one line naming run.yaml; the unswapped run is untouched."""
+    from bouncelab.flights.extract import extract_run
+
+    sig = known_signals()
+    swapped = {**sig, "continuity": sig["drive"], "drive": sig["continuity"]}
+    run_dir = make_run(fmt, signals=swapped)
+    report = validate_run(run_dir)
+    assert report.extract_problem and "swapped in run.yaml" in report.extract_problem
+    with pytest.raises(BouncelabError, match="swapped") as err:
+        extract_run(run_dir)
+    assert "run.yaml" in str(err.value)
+    assert validate_run(make_run(fmt, name="right", signals=sig)).extract_problem is None

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bouncelab.errors import collected_warnings
+from bouncelab.errors import BouncelabError, collected_warnings
 from bouncelab.flights.coupling import ac_coupling_tau, undo_ac_coupling
 from bouncelab.flights.detect import (
     BOUNCE_MAX,
@@ -407,11 +407,19 @@ def extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
 def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     """:func:`extract_run` without the collection of its warnings."""
     from bouncelab.runs import load_run, read_recording, step_table
-    from bouncelab.runs.validate import steps_after_end, steps_before_start, time_gaps
+    from bouncelab.runs.validate import (
+        steps_after_end,
+        steps_before_start,
+        swapped_channels,
+        time_gaps,
+    )
 
     run = load_run(run_dir)
     rec = read_recording(run, roles=("continuity", "drive"))
     fs = float(rec.fs)
+    swapped = swapped_channels(rec)
+    if swapped:
+        raise BouncelabError(run.yaml_path, swapped)
     x = rec.channels["continuity"]
     drive = rec.channels.get("drive")
     tau_ac = ac_coupling_tau(x, fs)

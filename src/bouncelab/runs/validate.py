@@ -346,6 +346,58 @@ def clipped_channels(run: Run, rec: Recording) -> list[str]:
     return out
 
 
+#: A continuity channel sits at two levels: in a block of ``TWO_LEVEL_BLOCK_S`` with both
+#: levels, at least ``TWO_LEVEL_MIN`` of its samples lie within ``TWO_LEVEL_BAND`` of the
+#: block's gap of one of them (a sine: 2/3; a two-level channel under a 20 % hum: ~1).
+TWO_LEVEL_BLOCK_S, TWO_LEVEL_BAND, TWO_LEVEL_MIN, TWO_LEVEL_BLOCKS = 0.2, 0.25, 0.85, 200
+#: ... and a drive channel is taken for a continuity one from this share on (a sine
+#: clipped at 60 % of its amplitude reads about 0.8)
+TWO_LEVEL_DRIVE = 0.95
+
+
+def two_level_share(x: np.ndarray, fs: float) -> float | None:
+    """Median over blocks of the share of samples (n,) within :data:`TWO_LEVEL_BAND` of
+    the gap of the block's low or high level (1st and 99th percentiles), over up to
+    :data:`TWO_LEVEL_BLOCKS` blocks spread over ``x`` whose gap is at least a fifth of the
+    whole channel's; None where no block has one (a channel at one level)."""
+    n = x.shape[0]
+    size = max(int(TWO_LEVEL_BLOCK_S * fs), 64)
+    if n < size:
+        return None
+    lo_all, hi_all = np.percentile(x[:: max(n // 200_000, 1)], [1, 99])
+    shares = []
+    for a in np.unique(np.linspace(0, n - size, TWO_LEVEL_BLOCKS).astype(np.int64)):
+        b = np.asarray(x[a : a + size], dtype=np.float64)
+        lo, hi = np.percentile(b, [1, 99])
+        gap = hi - lo
+        if not gap > 0.2 * (hi_all - lo_all):
+            continue
+        near = (np.abs(b - lo) < TWO_LEVEL_BAND * gap) | (np.abs(b - hi) < TWO_LEVEL_BAND * gap)
+        shares.append(float(near.mean()))
+    return float(np.median(shares)) if shares else None
+
+
+def swapped_channels(rec: Recording) -> str | None:
+    """Why the continuity and drive channels look swapped in run.yaml, or None: the
+    continuity channel does not sit at two levels (:func:`two_level_share`) while the
+    drive channel does (which no drive does: the continuity channel alone can read low,
+    blind `chaos_seed_like_b` 0.23, a 20 % hum 0.77). A probe's WAV with the two
+    swapped was extracted into 2045 invented flights and diagnosed, every command
+    exiting 0."""
+    drive = rec.channels.get("drive")
+    if drive is None:
+        return None
+    cont = two_level_share(rec.channels["continuity"], rec.fs)
+    other = two_level_share(drive, rec.fs)
+    if cont is None or other is None or cont >= TWO_LEVEL_MIN or other < TWO_LEVEL_DRIVE:
+        return None
+    return (
+        f"the continuity channel does not sit at two levels ({100 * cont:.0f} % of its "
+        f"samples near them, a sine gives 67 %) while the drive channel does "
+        f"({100 * other:.0f} %): are the two swapped in run.yaml's channels?"
+    )
+
+
 def contacts_expected(run, steps: pd.DataFrame) -> bool:
     """Whether the body must leave the plate in this run: a drop, or a sweep with a
     step at Gamma 1 or more (below it the body rests, and no contact is no fault)."""
@@ -354,8 +406,12 @@ def contacts_expected(run, steps: pd.DataFrame) -> bool:
 
 def extract_problem(run, rec: Recording, steps: pd.DataFrame) -> str | None:
     """Why extracting the run's flights will fail, or None (:class:`ValidationReport`'s
-    ``extract_problem``): where contacts are expected (:func:`contacts_expected`), a
-    constant continuity channel or one with no contacts to find (:func:`_no_contacts`)."""
+    ``extract_problem``): continuity and drive channels swapped
+    (:func:`swapped_channels`); where contacts are expected (:func:`contacts_expected`),
+    a constant continuity channel or one with no contacts to find (:func:`_no_contacts`)."""
+    swapped = swapped_channels(rec)
+    if swapped:
+        return swapped
     if not contacts_expected(run, steps):
         return None
     x = rec.channels["continuity"]

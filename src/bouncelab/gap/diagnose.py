@@ -842,9 +842,41 @@ def diagnose_flights(
         }
         if calibration.get("run") is not None:  # calibrate writes its drop run's id
             out["calibration"]["run"] = str(calibration["run"])
+        if not fix_calibration:
+            warnings.extend(calibration_disagreements(calibration, out["final_model"]["params"]))
     if include_timings:
         out["timings"] = diagnosis_timings(time.perf_counter() - t0, sel["fit_log"])
     return _json_safe(out)
+
+
+#: A fitted mu or e this far (relative) from the drop-test calibration's, and outside its
+#: interval, is warned of: the parameter goal of the diagnosis is 15 %.
+CALIBRATION_DISAGREE = 0.15
+
+
+def calibration_disagreements(calibration: dict, params: dict) -> list[str]:
+    """One line per parameter of the final model (``params``) that a drop-test
+    ``calibration`` (CONTRACTS.md section 4) also gives and that lies more than
+    :data:`CALIBRATION_DISAGREE` from it and outside its interval. A probe's sweep
+    fitted e 0.599 beside a calibration of 0.500 [0.4998, 0.5002], and said nothing."""
+    out = []
+    for key, p in CALIBRATION_PARAMS.items():
+        if p not in params:
+            continue
+        cal, fit = float(calibration[key]), float(params[p])
+        ci = calibration.get(f"{key}_ci")
+        if ci is not None and float(ci[0]) <= fit <= float(ci[1]):
+            continue
+        if cal <= 0.0 or abs(fit - cal) <= CALIBRATION_DISAGREE * cal:
+            continue
+        where = f" [{float(ci[0]):.4g}, {float(ci[1]):.4g}]" if ci is not None else ""
+        out.append(
+            f"the fitted {p} {fit:.4g} is {100 * (fit / cal - 1):+.0f} % from the drop-test "
+            f"calibration's {cal:.4g}{where}: the sweep and the drop test disagree (another "
+            "body or guide, an impact that lasts, or an effect standing in for another); "
+            "--fix-calibration holds the calibrated values"
+        )
+    return out
 
 
 def diagnosis_timings(total_s: float, fit_log: list[dict]) -> dict:

@@ -465,8 +465,9 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             det = None  # the body rests all along: no flights, and that is right
         else:
             raise
+    n_bounce = 0
     if det is not None:
-        det = _without_bounce(det, fs, rec.path)
+        det, n_bounce = without_switch_bounce(det, fs)
     if det is not None and det.ringing > 0:
         logging.getLogger(__name__).warning(
             "%s: the continuity channel moves before its edges (%.2g of the level gap, "
@@ -515,10 +516,10 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
                 # from rest refute this reading and confirm that one
                 level = "low" if det.contact_high else "high"
                 other = detect_contacts(x, level, rest, opened, path=rec.path, sample_rate_hz=fs)
-                other = _without_bounce(other, fs, rec.path)
+                other, n_other = without_switch_bounce(other, fs)
                 other_flights = flights_of(other)
                 if polarity_refuted(flights, other_flights, freq):
-                    det, flights = other, other_flights
+                    det, flights, n_bounce = other, other_flights, n_other
             else:
                 logging.getLogger(__name__).warning(
                     "%s: contact level read as the level held less of the time (%.0f %%), "
@@ -528,6 +529,8 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
                     rec.path,
                     100 * contact_share(det, n),
                 )
+    if n_bounce:  # of the reading kept (the polarity's other one may have replaced it)
+        _warn_bounce(n_bounce, rec.path)
     overlong = overlong_flights(flights)
     if overlong.any():
         logging.getLogger(__name__).warning("%s: %s", rec.path, overlong_line(flights, overlong))
@@ -554,21 +557,18 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     return flights, qc
 
 
-def _without_bounce(det: Detection, fs: float, path) -> Detection:
-    """:func:`without_switch_bounce`, with a warning naming the file where it removes any."""
-    det, n = without_switch_bounce(det, fs)
-    if n:
-        logging.getLogger(__name__).warning(
-            "%s: %d opening(s) shorter than %g of a sample within %g ms of a landing after "
-            "a flight %g times longer or more, read as a switch's contact bounce (or a "
-            "rebound too small to resolve): left out, the contacts around each merged",
-            path,
-            n,
-            BOUNCE_MAX,
-            1e3 * BOUNCE_WINDOW_S,
-            BOUNCE_RATIO,
-        )
-    return det
+def _warn_bounce(n: int, path) -> None:
+    """The warning on ``n`` openings :func:`without_switch_bounce` left out."""
+    logging.getLogger(__name__).warning(
+        "%s: %d opening(s) shorter than %g of a sample within %g ms of a landing after "
+        "a flight %g times longer or more, read as a switch's contact bounce (or a "
+        "rebound too small to resolve): left out, the contacts around each merged",
+        path,
+        n,
+        BOUNCE_MAX,
+        1e3 * BOUNCE_WINDOW_S,
+        BOUNCE_RATIO,
+    )
 
 
 def _warn_held_levels(x, det: Detection, fs: float, path, time_s) -> None:

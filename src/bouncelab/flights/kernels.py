@@ -646,23 +646,9 @@ def edge_range(
                 break
             # iteration k in full (u_nxt is u[k+1], or u_cur at the last sample)
             state, u_clean, glitch, n_new, ta, ka, tb, kb, z = _full_iteration(
-                x,
-                block,
-                open_b,
-                inv_b,
-                k,
-                k + 1 < n,
-                state,
-                u_prev,
-                u_cur,
-                u_nxt,
-                q,
-                sdz,
-                thr_min,
-                thr_max,
-                d_prior,
-                glitch_k,
-            )
+                x, block, open_b, inv_b, k, k + 1 < n, state, u_prev, u_cur, u_nxt, q, sdz,
+                thr_min, thr_max, d_prior, glitch_k,
+            )  # fmt: skip
             if glitch:
                 ng += 1
                 if n_g < g_cap:
@@ -698,23 +684,9 @@ def edge_range(
 
 @njit(cache=True, nogil=True)
 def _full_iteration(
-    x,
-    block,
-    open_b,
-    inv_b,
-    k,
-    have_next,
-    state,
-    u_prev,
-    u_cur,
-    u_nxt,
-    q,
-    sdz,
-    thr_min,
-    thr_max,
-    d_prior,
-    glitch_k,
-):
+    x, block, open_b, inv_b, k, have_next, state, u_prev, u_cur, u_nxt, q, sdz, thr_min,
+    thr_max, d_prior, glitch_k,
+):  # fmt: skip
     """One iteration of :func:`detect_edges_serial` (its loop body, same expressions).
 
     ``u_nxt`` is ``u[k+1]`` (``u_cur`` when ``have_next`` is false); the samples and

@@ -114,7 +114,7 @@ def flights_from_detection(
     phase_fits: dict | None = None,
     phase_offset_rad: float = 0.0,
     run_id: str = "",
-    phase_freq_hz: float | None = None,
+    phase_freq_hz: float | dict | None = None,
 ) -> pd.DataFrame:
     """Flight table (CONTRACTS.md section 3 columns plus ``contact_before_s``).
 
@@ -131,7 +131,8 @@ def flights_from_detection(
     phase_fits : step -> SineFit of the drive channel (None or missing: NaN phases).
     phase_offset_rad : how far the drive reference leads the plate, rad.
     phase_freq_hz : the frequency (Hz) the phases advance at and ``phase_fits`` were
-        fitted at (:func:`phase_frequency`); None: ``drive_freq_hz``. ``T`` and
+        fitted at (:func:`phase_frequency`), or step -> Hz (:func:`phase_frequencies`);
+        None: ``drive_freq_hz``. ``T`` and
         ``settled`` always take ``drive_freq_hz`` (CONTRACTS.md section 3).
     """
     ta_i, tl_i = det.flights()
@@ -169,10 +170,13 @@ def flights_from_detection(
     phi_t = np.full(flight.shape, np.nan)
     phi_l = np.full(flight.shape, np.nan)
     if phase_fits and drive_freq_hz:
-        f_phase = phase_freq_hz or drive_freq_hz
         for s, fit in phase_fits.items():
             m = step_ids == s
             if m.any():
+                if isinstance(phase_freq_hz, dict):
+                    f_phase = phase_freq_hz.get(s, drive_freq_hz)
+                else:
+                    f_phase = phase_freq_hz or drive_freq_hz
                 phi_t[m] = phase_at(t_take[m], fit, f_phase, phase_offset_rad)
                 phi_l[m] = phase_at(t_land[m], fit, f_phase, phase_offset_rad)
     nan_g = gammas <= 0  # the plate is at rest: no phase
@@ -283,9 +287,47 @@ def phase_frequency(freqs: dict, stated_hz: float) -> float:
     return float(stated_hz)
 
 
+#: Phase error (rad) at a step's ends beyond which each step's phases follow its own
+#: measured drive frequency (:func:`phase_frequencies`): 6 times the largest of the
+#: shipped runs' (0.0035, the estimates' own scatter over 2-s steps), where a probe's
+#: drive drifting 0.3 % over the run put it at 0.29.
+PHASE_DRIFT_RAD = 0.02
+
+
+def phase_frequencies(freqs: dict, common_hz: float, steps: pd.DataFrame) -> dict:
+    """The frequency (Hz) each step's drive phases advance at (step -> Hz).
+
+    ``common_hz`` (:func:`phase_frequency`) for every step, unless the drive's frequency
+    drifts within the run: where some step's own measured frequency (``freqs``: step ->
+    Hz, :func:`drive_frequencies`, NaN where unknown) puts its ends more than
+    :data:`PHASE_DRIFT_RAD` off the common one (``pi |f_step - f| duration``), each step
+    with a measured frequency takes its own. Why: a phase re-anchored at each step's
+    middle drifts from the plate's towards the step's ends; a probe's drive going 30.000
+    to 30.090 Hz over a run (+0.3 %, an oscillator warming up) had a sawtooth error of up
+    to 0.31 rad in every step. ``steps``: the step table (``step``, ``t_start_s``,
+    ``t_end_s``, s).
+    """
+    ids = steps["step"].to_numpy(dtype=np.int64)
+    durations = (steps["t_end_s"] - steps["t_start_s"]).to_numpy(dtype=np.float64)
+    common = {int(s): float(common_hz) for s in ids}
+    own = {
+        int(s): float(freqs[int(s)]) for s in ids if int(s) in freqs and np.isfinite(freqs[int(s)])
+    }
+    off = [
+        abs(own[int(s)] - common_hz) * d
+        for s, d in zip(ids, durations, strict=True)
+        if int(s) in own
+    ]
+    worst = np.pi * max(off, default=0.0)
+    if worst <= PHASE_DRIFT_RAD:
+        return common
+    return common | own
+
+
 def drive_fits(drive, steps, fs, freq_hz, time_s) -> dict:
-    """SineFit of the drive channel per step (step -> SineFit); the first settle
-    cycles are kept: the phase of the reference does not jump at a step change."""
+    """SineFit of the drive channel per step (step -> SineFit) at ``freq_hz`` (Hz: one
+    for all steps, or step -> Hz, :func:`phase_frequencies`); the first settle cycles
+    are kept: the phase of the reference does not jump at a step change."""
     fits = {}
     n = drive.shape[0]
     for row in steps.itertuples(index=False):
@@ -293,7 +335,8 @@ def drive_fits(drive, steps, fs, freq_hz, time_s) -> dict:
         if b - a < 8:
             continue
         t = np.arange(a, b) / fs if time_s is None else time_s[a:b]
-        fits[int(row.step)], _ = fit_sine(t, drive[a:b], freq_hz)
+        f = freq_hz[int(row.step)] if isinstance(freq_hz, dict) else freq_hz
+        fits[int(row.step)], _ = fit_sine(t, drive[a:b], f)
     return fits
 
 
@@ -301,15 +344,33 @@ def drive_frequencies(drive, steps, fs, freq_hz, time_s) -> dict:
     """The drive channel's frequency (Hz) per step (step -> Hz,
     :func:`bouncelab.flights.phase.dominant_frequency`; NaN where it shows no clear line,
     as with the plate at rest) for the steps of at least ``MIN_FREQUENCY_CYCLES`` cycles
-    of the stated ``freq_hz``; the samples are taken as spaced ``1 / fs``. Not the sine
-    fits' frequency: those take the stated one, and lose the signal when it is wrong."""
+    of the stated ``freq_hz``. The samples are taken as spaced ``1 / fs``: where the
+    ``time_s`` axis jumps within a step (samples missing), its longest stretch without
+    a jump is read. Not the sine fits' frequency: those take the stated one, and lose
+    the signal when it is wrong."""
     out = {}
     n = drive.shape[0]
     for row in steps.itertuples(index=False):
         a, b = _step_slice(row.t_start_s, row.t_end_s, fs, time_s, n)
+        a, b = _longest_even_stretch(a, b, fs, time_s)
         if (b - a) * freq_hz >= MIN_FREQUENCY_CYCLES * fs:
             out[int(row.step)] = dominant_frequency(drive[a:b], fs)
     return out
+
+
+def _longest_even_stretch(a: int, b: int, fs: float, time_s) -> tuple[int, int]:
+    """The longest part ``[a', b')`` of the samples ``[a, b)`` whose ``time_s`` does not
+    jump by more than 1.5 sample intervals (:func:`gap_mask`'s jumps); ``(a, b)`` itself
+    without a ``time_s`` axis or a jump."""
+    if time_s is None or b - a < 2:
+        return a, b
+    jumps = np.flatnonzero(np.diff(time_s[a:b]) > 1.5 / fs) + 1  # a stretch starts there
+    if jumps.size == 0:
+        return a, b
+    starts = np.concatenate(([0], jumps))
+    ends = np.concatenate((jumps, [b - a]))
+    k = int(np.argmax(ends - starts))
+    return a + int(starts[k]), a + int(ends[k])
 
 
 #: A takeoff after a contact of at least this many drive cycles is a takeoff from rest.
@@ -494,6 +555,19 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
                 100 * (phase_freq / freq - 1.0),
                 freq,
             )
+        step_freqs = phase_frequencies(freqs, phase_freq, steps)
+        if len(set(step_freqs.values())) > 1:
+            own = np.array([freqs[s] for s in step_freqs if s in freqs and np.isfinite(freqs[s])])
+            logging.getLogger(__name__).warning(
+                "%s: the drive channel's frequency changes over the run (%.4f to %.4f Hz "
+                "over the steps, %.2f %% of %g): each step's drive phases follow its own",
+                rec.path,
+                own.min(),
+                own.max(),
+                100 * np.ptp(own) / freq,
+                freq,
+            )
+            phase_freq = step_freqs
         fits = drive_fits(drive, steps, fs, phase_freq, time_s)
     offset = float(run.extra.get("drive_phase_offset_rad", 0.0) or 0.0)
     if det is None:

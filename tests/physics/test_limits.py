@@ -79,3 +79,18 @@ def test_drop_chatter_ends_at_analytic_time(e):
     assert df["tail"].iloc[:-1].eq(0).all()
     # bounded work: the sequence ends after ~log(eps)/log(e) impacts
     assert len(df) < math.log(1e-5 / 10) / math.log(e) + 5
+
+
+@pytest.mark.parametrize("mu", [0.2, 0.5])
+def test_flights_are_continuous_across_the_friction_threshold(mu):
+    """Just above Gamma = 1 + mu the body leaves a hair before the top of the plate's
+    cycle; the event finder read a landing at once there (flights of 6e-17 rad from 1 ulp
+    to 1e-11 above the threshold, 2.16 rad at the threshold itself for mu 0.2). The
+    flight time is continuous in Gamma: reference, the threshold's own flight; 1e-9 rad
+    within 1e-11 of it, 2e-3 rad 1e-6 above (the slope there, about 1e3 rad per unit)."""
+    model = Model.parse("friction", {"mu": mu})
+    at = _t(model, [1.0 + mu], n=5)
+    assert np.all(at > 1.0)
+    for rel in (2.3e-16, 1e-13, 1e-11):
+        np.testing.assert_allclose(_t(model, [(1.0 + mu) * (1.0 + rel)], n=5), at, atol=1e-9)
+    np.testing.assert_allclose(_t(model, [(1.0 + mu) * (1.0 + 1e-6)], n=5), at, atol=2e-3)

@@ -700,16 +700,20 @@ def make_problem(
     heldout_every: int = 3,
     min_floor: float = MIN_FLOOR,
     max_cycles: float | None = FIT_PROTOCOL_CYCLES,
+    left_out_steps=(),
 ) -> Problem:
     """Prepare a run and its measured flights for fitting (see :class:`Problem`).
 
     The per-step floor is :func:`bouncelab.gap.noise.noise_floor` of the data alone (the
     data against an independent sample of its own size and spread), at least
     ``min_floor`` rad. The fits simulate the run's protocol cut to ``max_cycles`` drive
-    cycles (:func:`fit_protocol`; None: the whole protocol).
+    cycles (:func:`fit_protocol`; None: the whole protocol). ``left_out_steps``: steps
+    simulated (the state carries over them) but not compared, as those whose circuit
+    never closed (:func:`bouncelab.gap.diagnose.open_circuit_steps`).
     """
     proto = fit_protocol(run_protocol(run, duration_s), int(run.settle_cycles), max_cycles)
-    steps = proto[["step", "gamma"]].sort_values(["gamma", "step"], kind="stable")
+    compared = ~proto["step"].isin([int(s) for s in left_out_steps])
+    steps = proto.loc[compared, ["step", "gamma"]].sort_values(["gamma", "step"], kind="stable")
     steps = steps.reset_index(drop=True)
     data_table = flights.reset_index(drop=True)
     min_T = resolution_T(run)

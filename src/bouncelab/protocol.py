@@ -49,6 +49,7 @@ def simulate_run(
     seed: int = 0,
     min_contact: float = 0.0,
     chatter_eps: float = CHATTER_EPS,
+    stick_speed: float = 0.0,
 ) -> pd.DataFrame:
     """The model under the run's protocol, as a flight table like the measured one.
 
@@ -63,6 +64,7 @@ def simulate_run(
         contact lasts at least that long (:func:`bouncelab.physics.simulate.seen_flights`).
     chatter_eps : rad; a chatter sequence ends once its next flight would be shorter
         (:func:`bouncelab.physics.simulate.simulate_protocol`).
+    stick_speed : g / omega; a rebound slower than this sticks (0: none).
 
     Returns
     -------
@@ -83,6 +85,7 @@ def simulate_run(
         seed=seed,
         n_starts=n_starts,
         chatter_eps=chatter_eps,
+        stick_speed=stick_speed,
     )
     sim = seen_flights(sim, min_contact)
     # phase at which each model step starts, to put flights on the recording's clock

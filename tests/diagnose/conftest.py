@@ -1,5 +1,5 @@
 """Make the pseudo-data helpers (``diag_synth.py``) importable; a null run shared by the
-tests of the diagnosis's seeds (``--check-seeds``, ``--retries``)."""
+tests of the diagnosis's seeds (``--check-seeds``, ``--retries``); a stand-in diagnosis."""
 
 import sys
 from pathlib import Path
@@ -21,3 +21,25 @@ def null_run(tmp_path_factory):
     run_dir = write_run(root)
     path = write_table(pseudo_flights(run_dir, Model.parse("ideal"), seed=3), root / "f.parquet")
     return run_dir, path
+
+
+@pytest.fixture
+def given(monkeypatch):
+    """``diagnose_flights`` replaced by a stand-in (a real diagnosis needs minutes): what
+    it was given is recorded (``max_T``, ``n`` flights, ``left_out_steps``)."""
+    import bouncelab.gap.diagnose as diag
+
+    seen = {}
+
+    def fake(run, table, duration, *, seed, left_out_steps=(), **kw):
+        seen["max_T"] = float(table["T"].max())
+        seen["n"] = len(table)
+        seen["left_out_steps"] = list(left_out_steps)
+        return {
+            "verdict_margin": {"rel_gap": 0.5, "n_heldout": 10},
+            "design": {"seed": seed}, "selected": [], "unexplained": False,
+            "final_rel_gap": 0.5, "warnings": [],
+        }  # fmt: skip
+
+    monkeypatch.setattr(diag, "diagnose_flights", fake)
+    return seen

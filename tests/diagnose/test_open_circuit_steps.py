@@ -60,25 +60,6 @@ def test_a_left_out_step_is_simulated_but_not_compared(tmp_path):
     np.testing.assert_allclose(g_cut, others)
 
 
-@pytest.fixture
-def given(monkeypatch):
-    """``diagnose_flights`` replaced: what it was given is recorded."""
-    import bouncelab.gap.diagnose as diag
-
-    seen = {}
-
-    def fake(run, table, duration, *, seed, left_out_steps=(), **kw):
-        seen["left_out_steps"] = list(left_out_steps)
-        return {
-            "verdict_margin": {"rel_gap": 0.5, "n_heldout": 10},
-            "design": {"seed": seed}, "selected": [], "unexplained": False,
-            "final_rel_gap": 0.5, "warnings": [],
-        }  # fmt: skip
-
-    monkeypatch.setattr(diag, "diagnose_flights", fake)
-    return seen
-
-
 def test_the_diagnosis_leaves_out_the_open_steps_and_says_so(null_run, given, tmp_path):
     from bouncelab.flights.extract import qc_path_for
     from bouncelab.gap.diagnose import diagnose_run

@@ -8,30 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-import pytest
 
 from bouncelab.flights.extract import OVERLONG_T_RAD, overlong_flights
 from bouncelab.tables import read_table, write_table
-
-
-@pytest.fixture
-def given(monkeypatch):
-    """``diagnose_flights`` replaced: the largest T it was given is recorded."""
-    import bouncelab.gap.diagnose as diag
-
-    seen = {}
-
-    def fake(run, table, duration, *, seed, **kw):
-        seen["max_T"] = float(table["T"].max())
-        seen["n"] = len(table)
-        return {
-            "verdict_margin": {"rel_gap": 0.5, "n_heldout": 10},
-            "design": {"seed": seed}, "selected": [], "unexplained": False,
-            "final_rel_gap": 0.5, "warnings": [],
-        }  # fmt: skip
-
-    monkeypatch.setattr(diag, "diagnose_flights", fake)
-    return seen
 
 
 def with_open_stretch(path, tmp_path):

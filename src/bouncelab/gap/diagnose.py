@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from bouncelab.energy import G_STANDARD
 from bouncelab.errors import BouncelabError
 from bouncelab.flights.accel import (
     MIN_GAMMA_FOR_SCALE,
@@ -45,6 +46,7 @@ from bouncelab.gap.fit import (
     PROBE_SHARE,
     REFINE_DRAWS,
     RIDE_LOAD_CHOICES,
+    STICK_SHARE,
     FitResult,
     FitSettings,
     Problem,
@@ -753,9 +755,9 @@ def diagnose_flights(
     nowhere = None if reasons else no_repeat_warning(repeat)
     if nowhere:
         warnings.append(nowhere)
-    short_cut = chatter_floor_warning(problem)
-    if short_cut:
-        warnings.insert(0, short_cut)
+    for short_cut in (sticking_speed_warning(problem), chatter_floor_warning(problem)):
+        if short_cut:
+            warnings.insert(0, short_cut)
 
     regions = _regions(problem, base_fit.gaps, sel["accepted"], cmp_base, select_settings)
     out = {
@@ -937,6 +939,11 @@ def _design(problem, fit_settings, select_settings, baseline, seed, fixed) -> di
         # the data's shortest contact, the model's flights are read with (0: unresolved)
         "min_contact": problem.min_contact,
         "min_contact_s": problem.min_contact
+        / (2.0 * math.pi * float(problem.run.drive_frequency_hz)),
+        # rebounds slower than this stick in every simulation (g / omega; 0: none)
+        "stick_speed": problem.stick_speed,
+        "stick_speed_m_s": problem.stick_speed
+        * G_STANDARD
         / (2.0 * math.pi * float(problem.run.drive_frequency_hz)),
         # joint fits of later rounds search the steps up to this Gamma first (None: not)
         "continuation_gamma": continuation_gamma(problem),
@@ -1165,6 +1172,22 @@ def no_repeat_warning(check: dict) -> str | None:
         f"the flights repeat at no step (least repeat {least:.3g} rad, {tol:.3g} to count "
         "as one): every step is chaotic or shaken, where the flight times tell the "
         "effects apart weakly; the selected effects may stand in for others"
+    )
+
+
+def sticking_speed_warning(problem: Problem) -> str | None:
+    """A warning where the data's body sticks below a rebound speed
+    (:func:`bouncelab.gap.fit.sticking_speed`), or None: every simulation's slower
+    rebounds then stick, so the diagnosis does not test how the chatter ends."""
+    if problem.stick_speed <= 0.0:
+        return None
+    mm_s = 1e3 * G_STANDARD / (2.0 * math.pi * float(problem.run.drive_frequency_hz))
+    return (
+        f"the body bounces, but no rebound leaves the plate slower than about "
+        f"{problem.stick_speed / STICK_SHARE * mm_s:.3g} mm/s though the recording "
+        "resolves slower ones: it sticks at low impact speed, where a constant "
+        f"restitution chatters on; every simulation's rebounds slower than "
+        f"{problem.stick_speed * mm_s:.3g} mm/s stick"
     )
 
 

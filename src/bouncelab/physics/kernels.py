@@ -48,7 +48,8 @@ P_FAST = 10  # 1.0: pure sine plates use fly_sine; 0.0: the general solver fly e
 P_LOAD = 11  # ride_load: share of a riding body's contact force that loads the armature
 P_ENERGY = 12  # 1.0: the energy columns complete; 0.0: friction's ride term skipped (fits)
 P_ALLCOLS = 13  # 1.0: every output column written; 0.0: only FIT_COLUMNS (fits)
-NPAR = 14
+P_STICK = 14  # sticking speed (g / omega): a rebound slower than this sticks (0: none)
+NPAR = 15
 
 # --- output columns -----------------------------------------------------------------
 C_GAMMA = 0  # stated Gamma at takeoff
@@ -1133,6 +1134,7 @@ def trajectory(
     f2 = f * f
     om = f2 - lam * lam
     eps_t = par[P_EPS]
+    stick_v = par[P_STICK]
     htol = par[P_HTOL]
     cap = int(par[P_CAP])
     ride_max = par[P_RIDE]
@@ -1484,7 +1486,11 @@ def trajectory(
         w = -e * u
         tau = 0.0
         eff_e = e
-        if w > 0.0:
+        if 0.0 < w < stick_v:
+            # slower than the sticking speed: the body stays on the plate (no tail: its
+            # impacts end here, as a real body's do where they get slow)
+            eff_e = 0.0
+        elif w > 0.0:
             c1 = (gu if p1 + w > 0.0 else gd) + p2
             c2 = (gu if p1 > 0.0 else gd) + p2
             if c1 > 0.0 and c2 > 0.0:

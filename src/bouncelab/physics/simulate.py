@@ -210,6 +210,7 @@ def simulate_protocol(
     n_starts: int = 1,
     phi_start=None,
     chatter_eps: float = CHATTER_EPS,
+    stick_speed: float = 0.0,
 ) -> pd.DataFrame:
     """The lab protocol: Gamma steps with the state carried from one step to the next.
 
@@ -228,6 +229,8 @@ def simulate_protocol(
 
     ``chatter_eps`` (rad) ends a chatter sequence once its predicted flight is shorter
     (default :data:`CHATTER_EPS`; docs/physics.md, "Chatter termination").
+    ``stick_speed`` (g / omega, > 0) ends it at once where a rebound would be slower: the
+    body sticks (docs/physics.md, "Sticking speed"); 0: never.
     """
     model = _check_model(model)
     g, step_end = _protocol_steps(gammas, cycles, settle_cycles)
@@ -239,6 +242,7 @@ def simulate_protocol(
     max_rec = int(4 * step_end[-1] + 64)
     par = kernel_params(model)
     par[K.P_EPS] = float(chatter_eps)
+    par[K.P_STICK] = float(stick_speed)
     while True:
         out = np.empty((K.NCOL, ns * max_rec))
         rows, status = K.run_many(
@@ -304,6 +308,7 @@ def protocol_flight_times(
     chatter_eps: float = CHATTER_EPS,
     buffer: OutputBuffer | None = None,
     min_contact: float = 0.0,
+    stick_speed: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """The lab protocol for an ensemble whose members' true Gamma is scaled, as arrays.
 
@@ -316,7 +321,8 @@ def protocol_flight_times(
     it to save the kernel the long geometric tails. ``buffer`` keeps the kernel's
     output array between calls (:class:`OutputBuffer`); the results never share its memory.
     ``min_contact`` (rad) > 0: the flights as a continuity circuit shows them when every
-    contact lasts at least that long (:func:`seen_flights`).
+    contact lasts at least that long (:func:`seen_flights`). ``stick_speed`` (g / omega):
+    rebounds slower than this stick (:func:`simulate_protocol`).
 
     Returns
     -------
@@ -332,6 +338,7 @@ def protocol_flight_times(
     hk, ha, hp = model.harmonic_arrays()
     par = kernel_params(model)
     par[K.P_EPS] = float(chatter_eps)
+    par[K.P_STICK] = float(stick_speed)
     par[K.P_ENERGY] = 0.0  # flight times only: the energy columns are not read
     par[K.P_ALLCOLS] = 0.0  # nor any column but those protocol_rows reads
     # room for chatter at once: np.empty only maps pages, so unwritten room costs nothing,

@@ -101,3 +101,23 @@ def test_too_few_steps_left_to_compare_says_why(tmp_path):
         diagnose_flights(
             load_run(run_dir), flights, duration_s(gammas), left_out_steps=[2], progress=False
         )
+
+
+def test_open_steps_are_compared_where_too_few_would_be_left(null_run, given, tmp_path):
+    """Leaving them out must not refuse a run the diagnosis took before: with only two
+    steps left to compare, every step is compared, and the warning says why."""
+    from bouncelab.flights.extract import qc_path_for
+    from bouncelab.gap.diagnose import diagnose_run
+
+    run_dir, flights = null_run
+    table = read_table(flights)
+    steps = sorted(set(table["step"]))
+    gammas = [float(table.loc[table["step"] == s, "gamma"].iloc[0]) for s in steps]
+    dark = steps[2:]  # all but two
+    path = write_table(table[~table["step"].isin(dark)], tmp_path / "f.parquet")
+    qc = qc_of(steps, gammas, [0.0 if s in dark else 0.3 for s in steps])
+    write_table(qc, qc_path_for(path))
+    r = diagnose_run(run_dir, flights=path, retries=0, progress=False)
+    assert given["left_out_steps"] == [] and r["left_out_steps"] == []
+    (line,) = [w for w in r["input_warnings"] if "circuit open throughout" in w]
+    assert line.endswith("so they are compared all the same")

@@ -1365,7 +1365,14 @@ def diagnose_run(
     where = flights if isinstance(flights, (str, Path)) else run.yaml_path.parent
     table, table_notes = without_overlong(table, qc, where)
     dark = open_circuit_steps(qc, table)
-    if dark:
+    if dark and too_few_steps(len(qc) - len(dark)):
+        # the run would be refused for it: compared as before, with the reason said
+        table_notes.append(
+            f"{where}: {open_circuit_line(qc, dark)}; too few steps would be left to "
+            "compare, so they are compared all the same"
+        )
+        dark = []
+    elif dark:
         table_notes.append(f"{where}: {open_circuit_line(qc, dark)}")
     read_s = time.perf_counter() - t0
 

@@ -590,6 +590,24 @@ def min_contact_T(run: Run, flights: pd.DataFrame) -> float:
     return 2.0 * math.pi * float(run.drive_frequency_hz) * typical
 
 
+def _settled_pairs(run: Run, flights: pd.DataFrame, min_T: float, min_contact: float):
+    """The flights of at least ``min_T`` rad in time order within each step (``f``), and
+    two bool arrays over each flight but the first, shape ``(len(f) - 1,)``: ``kept``,
+    settled at Gamma > 1 after a flight of its own step; ``bounce``, those of ``kept``
+    that start within :data:`BOUNCE_CONTACTS` times ``min_contact`` (rad) plus
+    :data:`BOUNCE_SAMPLES` samples of the landing before them (a rebound, not a ride).
+    What :func:`chatter_floor_T` and :func:`sticking_speed` read."""
+    f = flights.sort_values(["step", "t_takeoff_s"], kind="stable")
+    f = f.loc[f["T"].to_numpy(dtype=float) >= min_T]
+    step = f["step"].to_numpy()
+    kept = f["settled"].to_numpy(dtype=bool)[1:] & (f["gamma"].to_numpy(dtype=float)[1:] > 1.0)
+    kept &= step[1:] == step[:-1]
+    takeoff, landing = (f[c].to_numpy(dtype=float) for c in ("t_takeoff_s", "t_landing_s"))
+    omega = 2.0 * math.pi * float(run.drive_frequency_hz)
+    within = BOUNCE_CONTACTS * min_contact / omega + BOUNCE_SAMPLES / float(run.sample_rate_hz)
+    return f, kept, kept & (takeoff[1:] - landing[:-1] <= within)
+
+
 def chatter_floor_T(run: Run, flights: pd.DataFrame, min_T: float, min_contact: float) -> float:
     """The shortest flight the comparison keeps, rad: ``min_T``, or just below the data's
     shortest flight where the body bounces and that lies well above ``min_T``.
@@ -630,18 +648,10 @@ def chatter_floor_T(run: Run, flights: pd.DataFrame, min_T: float, min_contact: 
     (CONTRACTS.md section 3), already cut at ``min_T`` (rad); ``min_contact``: rad,
     :func:`min_contact_T` of that table.
     """
-    f = flights.sort_values(["step", "t_takeoff_s"], kind="stable")
-    f = f.loc[f["T"].to_numpy(dtype=float) >= min_T]
-    step = f["step"].to_numpy()
-    kept = f["settled"].to_numpy(dtype=bool)[1:] & (f["gamma"].to_numpy(dtype=float)[1:] > 1.0)
-    kept &= step[1:] == step[:-1]
+    f, kept, bounce = _settled_pairs(run, flights, min_T, min_contact)
     if np.count_nonzero(kept) < max(CHATTER_FLOOR_MIN_COUNT, CHATTER_FLOOR_RANK):
         return float(min_T)
-    takeoff, landing = (f[c].to_numpy(dtype=float) for c in ("t_takeoff_s", "t_landing_s"))
-    contact = takeoff[1:] - landing[:-1]
-    omega = 2.0 * math.pi * float(run.drive_frequency_hz)
-    within = BOUNCE_CONTACTS * min_contact / omega + BOUNCE_SAMPLES / float(run.sample_rate_hz)
-    if np.count_nonzero(kept & (contact <= within)) < BOUNCE_SHARE * np.count_nonzero(kept):
+    if np.count_nonzero(bounce) < BOUNCE_SHARE * np.count_nonzero(kept):
         return float(min_T)
     floor = float(np.sort(f["T"].to_numpy(dtype=float)[1:][kept])[CHATTER_FLOOR_RANK - 1])
     if floor < CHATTER_FLOOR_RATIO * min_T:
@@ -709,19 +719,13 @@ def sticking_speed(run: Run, flights: pd.DataFrame, min_T: float, min_contact: f
     ``flights``: the run's flight table (CONTRACTS.md section 3) cut at ``min_T`` (rad);
     ``min_contact``: rad, :func:`min_contact_T`.
     """
-    f = flights.sort_values(["step", "t_takeoff_s"], kind="stable")
-    f = f.loc[f["T"].to_numpy(dtype=float) >= min_T]
+    f, _, bounce = _settled_pairs(run, flights, min_T, min_contact)
     if len(f) < STICK_MIN_COUNT:
         return 0.0
-    step = f["step"].to_numpy()
     T = f["T"].to_numpy(dtype=float)
     gamma = f["gamma"].to_numpy(dtype=float)[1:]
     phi = f["phi_takeoff"].to_numpy(dtype=float)[1:]
-    takeoff, landing = (f[c].to_numpy(dtype=float) for c in ("t_takeoff_s", "t_landing_s"))
-    omega = 2.0 * math.pi * float(run.drive_frequency_hz)
-    within = BOUNCE_CONTACTS * min_contact / omega + BOUNCE_SAMPLES / float(run.sample_rate_hz)
-    rebound = f["settled"].to_numpy(dtype=bool)[1:] & (gamma > 1.0) & (step[1:] == step[:-1])
-    rebound &= (takeoff[1:] - landing[:-1] <= within) & (T[1:] < T[:-1]) & np.isfinite(phi)
+    rebound = bounce & (T[1:] < T[:-1]) & np.isfinite(phi)
     # where the plate holds the body (relative deceleration over STICK_PRESS g), a flight
     # is a rebound of its own speed; elsewhere the plate pulls away and any body leaves
     pressed = 1.0 - gamma * np.sin(np.where(np.isfinite(phi), phi, 0.0))

@@ -283,3 +283,75 @@ def test_replay_of_multi_seed_records():
         ("lottery", 0, True),
         ("outside", 0, False),
     }
+
+
+def test_a_retry_keeps_the_armature_out_of_round_1_where_the_first_took_it_there():
+    """Reference: the independent ``friction_restitution_harmonic`` (session 80): seeds 0
+    and 1 both took the armature first and ended unexplained; the retry's path starts
+    from another effect. A first diagnosis that took anything else first, or none, is
+    retried on the same rule; the settings given are kept."""
+    from bouncelab.gap.diagnose import retry_settings
+    from bouncelab.gap.select import SelectSettings
+
+    armature_first = _result(0, ["feedback", "restitution"], True, 3.49)
+    assert retry_settings(armature_first, None).not_first == ("feedback",)
+    mine = SelectSettings(tie=0.5)
+    again = retry_settings(armature_first, mine)
+    assert again.not_first == ("feedback",) and again.tie == 0.5
+    assert retry_settings(_result(0, ["restitution", "feedback"], True, 3.1), mine) is mine
+    assert retry_settings(_result(0, [], True, 3.1), None) == SelectSettings()
+
+
+def test_the_retry_of_an_armature_first_diagnosis_is_run_and_named_on_its_path(
+    null_run, monkeypatch
+):
+    """Wiring: the retry's diagnosis gets ``not_first``, its row in ``retry`` says so and
+    the warning names the path it took."""
+    import bouncelab.gap.diagnose as diag
+
+    calls = []
+
+    from bouncelab.gap.select import SelectSettings
+
+    def fake(run, table, duration, *, seed, select_settings, **kw):
+        select_settings = select_settings or SelectSettings()
+        calls.append((seed, select_settings.not_first))
+        if seed == 0:
+            r = _result(0, ["feedback", "restitution"], True, 3.49)
+        else:
+            r = _result(seed, ["restitution", "harmonic", "friction"], False, 1.0)
+        r["design"]["stop_rule"] = {"not_first": list(select_settings.not_first)}
+        return r
+
+    monkeypatch.setattr(diag, "diagnose_flights", fake)
+    run_dir, flights = null_run
+    r = diag.diagnose_run(run_dir, flights=flights, progress=False)
+    assert calls == [(0, ()), (1, ("feedback",))]
+    assert r["design"]["seed"] == 1 and not r["unexplained"]
+    assert [d["not_first"] for d in r["retry"]["diagnoses"]] == [[], ["feedback"]]
+    assert "seed 1, feedback not taken first: restitution + harmonic + friction" in (
+        r["warnings"][-1]
+    )
+
+
+def test_an_effect_kept_out_of_round_1_is_fitted_reported_and_taken_later(monkeypatch):
+    """Reference: a scripted selection (floor 1). Round 1: the armature 2.0 floors,
+    restitution 2.5 (outside the tie of 0.25), the harmonic 5. Plainly the armature is
+    taken first; with ``not_first`` restitution is, the armature is still fitted in round
+    1 (its candidate reported), and round 2 may add it."""
+    from test_fit_units import _OneStepProblem, script_selection, table_fit_many
+
+    from bouncelab.gap import select
+
+    gaps = {"ideal": 10.0, "feedback": 2.0, "restitution": 2.5, "harmonic": 5.0,
+            "restitution+feedback": 0.5, "harmonic+feedback": 1.9}  # fmt: skip
+    names = []
+    script_selection(monkeypatch, table_fit_many(gaps, {}, names))
+    kw = dict(candidates=["restitution", "harmonic", "feedback"])
+    plain = select.forward_select(_OneStepProblem(), 1.0, **kw)
+    assert [e for e, _f in plain["accepted"]] == ["feedback", "restitution"]
+    names.clear()
+    settings = select.SelectSettings(not_first=("feedback",))
+    sel = select.forward_select(_OneStepProblem(), 1.0, settings=settings, **kw)
+    assert [e for e, _f in sel["accepted"]] == ["restitution", "feedback"]
+    assert "feedback" in [e for e, _f in sel["rounds"][0]] and "feedback" in names

@@ -33,13 +33,17 @@ RETRIES = 1
 
 def _summary(result: dict) -> dict:
     """What one diagnosis (the dict of :func:`bouncelab.gap.diagnose.diagnose_run`)
-    concluded: its seed, selected effects, verdict, final gap in noise floors with its
-    standard error (``gap_se``, None without one), whether that verdict is borderline and
-    the final model's parameters."""
+    concluded: its seed, the effects round 1 did not take (``not_first``, a retry's
+    path), selected effects, verdict, final gap in noise floors with its standard error
+    (``gap_se``, None without one), whether that verdict is borderline and the final
+    model's parameters."""
     final = result.get("final_model") or {}
     margin = result.get("verdict_margin") or {}
+    rule = result["design"].get("stop_rule") or {}
     return {
         "seed": int(result["design"]["seed"]),
+        # effects round 1 did not take (a retry's path: diagnose.retry_settings)
+        "not_first": list(rule.get("not_first") or []),
         "selected": list(result["selected"]),
         "unexplained": bool(result["unexplained"]),
         "final_rel_gap": float(result["final_rel_gap"]),
@@ -139,7 +143,8 @@ def seed_check(results: list[dict], reported: int = 0) -> dict:
 def _conclusion(row: dict) -> str:
     chosen = " + ".join(row["selected"]) or "nothing"
     verdict = "unexplained" if row["unexplained"] else "explained"
-    return f"seed {row['seed']}: {chosen}, {verdict}"
+    path = "".join(f", {e} not taken first" for e in row.get("not_first") or [])
+    return f"seed {row['seed']}{path}: {chosen}, {verdict}"
 
 
 def seed_warning(check: dict) -> str | None:

@@ -329,8 +329,8 @@ def test_the_retry_of_an_armature_first_diagnosis_is_run_and_named_on_its_path(
     assert calls == [(0, ()), (1, ("feedback",))]
     assert r["design"]["seed"] == 1 and not r["unexplained"]
     assert [d["not_first"] for d in r["retry"]["diagnoses"]] == [[], ["feedback"]]
-    assert "seed 1, feedback not taken first: restitution + harmonic + friction" in (
-        r["warnings"][-1]
+    assert (
+        "seed 1, feedback not taken first: restitution + harmonic + friction" in (r["warnings"][-1])
     )
 
 

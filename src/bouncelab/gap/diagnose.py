@@ -810,6 +810,7 @@ def diagnose_flights(
         "went_on": sel["went_on"],
         # an armature taken alone against every pair of the other effects, or null
         "pair_check": sel["pair_check"],
+        "pair_swap": sel["pair_swap"],
         # an armature taken alone against its other ride_load beside a Gamma miscalibration
         "armature_alternative": alternative,
         "weak_dropped": sel["weak_dropped"],

@@ -62,3 +62,26 @@ def test_no_swap_within_the_floor_or_without_a_pair_that_earns_its_place(monkeyp
     sel = select.forward_select(_OneStepProblem(), 1.0, candidates=CANDIDATES)
     assert [e for e, _f in sel["accepted"]] == ["harmonic"]
     assert "taken" not in sel["pair_swap"] and sel["pair_swap"]["current"] == 6.0
+
+
+def test_a_pair_with_a_refused_harmonic_is_not_swapped_in_and_is_marked_proposed(monkeypatch):
+    """Reference: a scripted selection. Restitution taken (6 floors), then nothing; the
+    best pair round 1 left apart has a harmonic the takeoff phases refuse: restitution
+    stays, the refusal is kept as the swap's with ``proposed`` (every refusal has one:
+    the diagnosis reads it for its warnings; blind ``ool_vdep_restitution`` stopped on a
+    KeyError before), and ``refused_pair`` names it."""
+    gaps = {**ROUND_1, "restitution": 6.0, "harmonic": 8.0,
+            _pair("friction", "harmonic"): 0.1}  # fmt: skip
+    script_selection(monkeypatch, table_fit_many(gaps, {**PARAMS, "restitution": {"e": 0.4}}))
+    why = {"k": 3.0, "a": 0.03, "psi": 1.0, "rms_rad": 0.2, "plain_rms_rad": 0.01}
+
+    def refuted(effect, model):
+        return why if effect == "harmonic" else None
+
+    sel = select.forward_select(_OneStepProblem(), 1.0, candidates=CANDIDATES, refuted=refuted)
+    assert [e for e, _f in sel["accepted"]] == ["restitution"]
+    assert sel["pair_swap"]["refused_pair"] == _pair("friction", "harmonic")
+    assert "taken" not in sel["pair_swap"]
+    assert all("proposed" in t for t in sel["takeoff_refused"])
+    swapped = [t for t in sel["takeoff_refused"] if t["round"] == "pair_swap"]
+    assert [t["proposed"] for t in swapped if t["model"] == _pair("friction", "harmonic")] == [True]

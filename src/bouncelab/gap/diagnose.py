@@ -717,6 +717,14 @@ def diagnose_flights(
             f"the shaker's armature alone ({pair['armature']:.3g} noise floors held out) "
             f"was replaced by {a} + {b} ({pair['pairs'][f'{a}+{b}']:.3g})"
         )
+    swap = sel["pair_swap"] or {}
+    if "taken" in swap:
+        a, b = swap["taken"]
+        warnings.append(
+            f"no single addition helped at {swap['current']:.3g} noise floors held out: "
+            f"{a} + {b} ({swap['pairs'][f'{a}+{b}']:.3g}), each weaker alone, replaced the "
+            "effects taken"
+        )
     for weak in sel["weak_dropped"]:
         lo, hi = weak["interval"]
         warnings.append(
@@ -735,7 +743,11 @@ def diagnose_flights(
             continue  # a harmonic no round or pair would have taken: in the JSON only
         warnings.append(
             f"{tr['effect']} (k = {tr['k']:g}, a = {tr['a']:.3g}) was refused "
-            + (f"in round {tr['round']}" if isinstance(tr["round"], int) else "in the pair check")
+            + (
+                f"in round {tr['round']}"
+                if isinstance(tr["round"], int)
+                else f"in the {tr['round'].replace('_', ' ')}"
+            )
             + f": it fits the takeoff phases {tr['rms_rad'] / tr['plain_rms_rad']:.3g} "
             "times worse than no harmonic"
         )

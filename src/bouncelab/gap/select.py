@@ -790,8 +790,9 @@ def _pair_swap(rounds, current, job, pool, progress, floor, settings, refused=No
     jointly from their round-1 values (:func:`_fit_pairs`), and the best of them (neither
     effect inert nor refused) in place of the effects taken when it earns its place
     against ``current`` (:func:`earns_place`: ``margin`` floors and ``min_shrink``).
-    ``info``: ``current`` and ``pairs`` (held-out gaps in floors) and ``taken`` (the pair,
-    its effects ordered by their round-1 gaps, if taken); ``accepted`` the new selection
+    ``info``: ``current`` and ``pairs`` (held-out gaps in floors), ``taken`` (the pair,
+    its effects ordered by their round-1 gaps, if taken) and ``refused_pair`` (the model)
+    when a pair with an effect ``refused`` would have been taken; ``accepted`` the new selection
     (the first effect's step its round-1 fit) or None; ``fits`` the pairs' fits. None
     for all three where the gap is within ``explained_ratio`` or no pair is left.
 
@@ -822,11 +823,16 @@ def _pair_swap(rounds, current, job, pool, progress, floor, settings, refused=No
         (g, (a, b), f)
         for (a, b), f, g in zip(pairs, fits, gaps, strict=True)
         if not any(is_inert(e, f.model.params) for e in (a, b))
-        and not (refused is not None and any(refused(e, f) for e in (a, b)))
     ]
-    if not live:
+    allowed = [r for r in live if not (refused is not None and any(refused(e, r[2]) for e in r[1]))]
+    if len(allowed) < len(live):
+        g0, _pair, f0 = min(live, key=lambda r: (r[0], r[1]))
+        earns = earns_place(g0, g_cur, floor, settings.margin, settings.min_shrink)
+        if earns and all(f0 is not r[2] for r in allowed):
+            info["refused_pair"] = f0.model.name  # would have been taken
+    if not allowed:
         return info, None, fits
-    g_pair, (a, b), fit = min(live, key=lambda r: (r[0], r[1]))
+    g_pair, (a, b), fit = min(allowed, key=lambda r: (r[0], r[1]))
     if not earns_place(g_pair, g_cur, floor, settings.margin, settings.min_shrink):
         return info, None, fits
     info["taken"] = [a, b]
@@ -1217,6 +1223,7 @@ def forward_select(
                 lambda e, f: refused(e, f, "pair_swap"),
             )  # fmt: skip
             work.add(swap_fits, [problem] * len(swap_fits))
+            mark_proposed("pair_swap", (pair_swap or {}).get("refused_pair"))
             if swapped is None:
                 return False
             accepted = swapped

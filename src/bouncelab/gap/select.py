@@ -727,6 +727,28 @@ def _fit_pairs(pairs, singles, round1, job, pool, progress) -> list[FitResult]:
     return fit_many(jobs, pool, progress) if jobs else []
 
 
+def _best_pair(pairs, fits, problem: Problem, refused, taken):
+    """``(gaps, best, refused_pair)`` of the joint fits ``fits`` of ``pairs``: each one's
+    held-out gap (rad); the best ``(gap, (a, b), fit)`` with neither effect inert nor
+    refused (``refused(effect, fit)``), None without one; and the model name of a better
+    pair with a refused effect whose gap ``taken`` (gap -> bool) would have taken, or
+    None."""
+    gaps = [heldout_gap(f, problem) for f in fits]
+    live = [
+        (g, (a, b), f)
+        for (a, b), f, g in zip(pairs, fits, gaps, strict=True)
+        if not any(is_inert(e, f.model.params) for e in (a, b))
+    ]
+    allowed = [r for r in live if not (refused is not None and any(refused(e, r[2]) for e in r[1]))]
+    refused_pair = None
+    if len(allowed) < len(live):
+        g0, _pair, f0 = min(live, key=lambda r: (r[0], r[1]))
+        if taken(g0) and all(f0 is not r[2] for r in allowed):
+            refused_pair = f0.model.name
+    best = min(allowed, key=lambda r: (r[0], r[1])) if allowed else None
+    return gaps, best, refused_pair
+
+
 def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings, refused=None):
     """``(accepted, info, fits)``: the selection with an armature taken alone replaced by
     the pair of other effects that explains the run better, or ``(accepted, None, [])``
@@ -759,25 +781,18 @@ def _pair_for_armature(rounds, accepted, job, pool, progress, floor, settings, r
     singles, pairs = _round1_pairs(rounds, problem)
     fits = _fit_pairs(pairs, singles, _round1_choices(rounds), job, pool, progress)
     g_arm = heldout_gap(accepted[0][1], problem)
-    gaps = [heldout_gap(f, problem) for f in fits]
+    gaps, best, refused_pair = _best_pair(
+        pairs, fits, problem, refused, lambda g: g_arm - g >= settings.margin * floor
+    )
     info = {
         "armature": g_arm / floor,
         "pairs": {f"{a}+{b}": g / floor for (a, b), g in zip(pairs, gaps, strict=True)},
     }
-    live = [
-        (g, (a, b), f)
-        for (a, b), f, g in zip(pairs, fits, gaps, strict=True)
-        if not any(is_inert(e, f.model.params) for e in (a, b))
-    ]
-    allowed = [r for r in live if not (refused is not None and any(refused(e, r[2]) for e in r[1]))]
-    if len(allowed) < len(live):
-        g0, _pair, f0 = min(live, key=lambda r: (r[0], r[1]))
-        if g_arm - g0 >= settings.margin * floor and all(f0 is not r[2] for r in allowed):
-            info["refused_pair"] = f0.model.name  # would have replaced the armature
-    live = allowed
-    if not live:
+    if refused_pair is not None:
+        info["refused_pair"] = refused_pair  # would have replaced the armature
+    if best is None:
         return accepted, info, fits
-    g_pair, (a, b), fit = min(live, key=lambda r: (r[0], r[1]))
+    g_pair, (a, b), fit = best
     if g_arm - g_pair < settings.margin * floor:
         return accepted, info, fits
     info["replaced_by"] = [a, b]
@@ -814,26 +829,21 @@ def _pair_swap(rounds, current, job, pool, progress, floor, settings, refused=No
     if not pairs:
         return None, None, []
     fits = _fit_pairs(pairs, singles, _round1_choices(rounds), job, pool, progress)
-    gaps = [heldout_gap(f, problem) for f in fits]
+
+    def earns(g: float) -> bool:
+        return earns_place(g, g_cur, floor, settings.margin, settings.min_shrink)
+
+    gaps, best, refused_pair = _best_pair(pairs, fits, problem, refused, earns)
     info = {
         "current": g_cur / floor,
         "pairs": {f"{a}+{b}": g / floor for (a, b), g in zip(pairs, gaps, strict=True)},
     }
-    live = [
-        (g, (a, b), f)
-        for (a, b), f, g in zip(pairs, fits, gaps, strict=True)
-        if not any(is_inert(e, f.model.params) for e in (a, b))
-    ]
-    allowed = [r for r in live if not (refused is not None and any(refused(e, r[2]) for e in r[1]))]
-    if len(allowed) < len(live):
-        g0, _pair, f0 = min(live, key=lambda r: (r[0], r[1]))
-        earns = earns_place(g0, g_cur, floor, settings.margin, settings.min_shrink)
-        if earns and all(f0 is not r[2] for r in allowed):
-            info["refused_pair"] = f0.model.name  # would have been taken
-    if not allowed:
+    if refused_pair is not None:
+        info["refused_pair"] = refused_pair  # would have been taken
+    if best is None:
         return info, None, fits
-    g_pair, (a, b), fit = min(allowed, key=lambda r: (r[0], r[1]))
-    if not earns_place(g_pair, g_cur, floor, settings.margin, settings.min_shrink):
+    g_pair, (a, b), fit = best
+    if not earns(g_pair):
         return info, None, fits
     info["taken"] = [a, b]
     return info, [(a, singles[a]), (b, fit)], fits

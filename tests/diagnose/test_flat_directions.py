@@ -103,11 +103,17 @@ def test_an_interval_side_at_the_fitted_value_is_walked_out_to_the_farthest_prob
     assert EDGE_SHARES[:3] == pytest.approx((0.075, 0.0375, 0.01875))
 
 
-def test_a_side_every_probe_resolves_stays_and_sides_off_the_value_are_left(monkeypatch):
+def test_a_side_every_probe_resolves_is_the_smallest_move_and_sides_off_the_value_are_left(
+    monkeypatch,
+):
     calls = _scripted(monkeypatch, lambda p: 0.5 + 100.0 * abs(p["mu"] / 0.2 - 1.0))
     fit = _fit("friction", {"mu": 0.2}, 0.5)
-    # a move of 0.23 % costs 0.23 rad: the side stays at the fitted value
-    assert edge_bounds(fit, _Problem(), {"mu": [0.2, 0.2]}, tolerance=0.1) == {"mu": [0.2, 0.2]}
+    # a move of 0.23 % costs 0.23 rad: the points within 0.1 rad lie inside that move,
+    # not at the fitted value alone (an interval of no width excludes every truth)
+    smallest = EDGE_SHARES[-1]
+    assert smallest == pytest.approx(0.0023, rel=0.02)
+    ci = edge_bounds(fit, _Problem(), {"mu": [0.2, 0.2]}, tolerance=0.1)
+    assert ci == {"mu": [pytest.approx(0.2 * (1 - smallest)), pytest.approx(0.2 * (1 + smallest))]}
     assert len(calls) == 1 + 2 * len(EDGE_SHARES)
     calls.clear()
     assert edge_bounds(fit, _Problem(), {"mu": [0.19, 0.21]}, 0.1) == {"mu": [0.19, 0.21]}

@@ -1874,9 +1874,12 @@ def edge_bounds(
     precision. There the parameter is moved by each of ``shares`` of its value in turn,
     largest first (:data:`EDGE_SHARES`, kept within its bounds), the others held
     (:func:`probe_rise`), and the first move within the tolerance is the side's bound,
-    like a point of the noise set. Where none is, the side stays: the data resolve a
-    move of the smallest share. Continuous, non-periodic parameters fitted away from 0
-    only. Costs a simulation of the fitted point and up to ``len(shares)`` per side.
+    like a point of the noise set. Where none is, the side is the smallest share's move:
+    the points within the tolerance lie inside it, and a side at the fitted value would
+    claim a precision no probe measured (a black-box probe's s 0.80025 with interval
+    [0.80025, 0.80025], the truth 0.8 0.03 % away; docs/diagnosis-log.md, session 80).
+    Continuous, non-periodic parameters fitted away from 0 only. Costs a simulation of
+    the fitted point and up to ``len(shares)`` per side.
     """
     out = {name: list(bounds) for name, bounds in ci.items()}
     if not problem.fit.any():
@@ -1889,11 +1892,14 @@ def edge_bounds(
         for end, side in ((0, -1.0), (1, 1.0)):
             if out[p.name][end] != v:
                 continue
+            moved = v
             for share in shares:
                 moved = float(min(max(v * (1.0 + side * share), p.lower), p.upper))
                 if moved != v and rise(p.name, moved) <= tolerance:
                     out[p.name][end] = moved
                     break
+            else:  # every move resolved: the side lies within the smallest
+                out[p.name][end] = moved
     return out
 
 

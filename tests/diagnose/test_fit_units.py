@@ -259,12 +259,14 @@ def scripted_fit(name: str, params: dict, gap: float) -> FitResult:
     )  # fmt: skip
 
 
-def script_selection(monkeypatch, fake_fit_many, refined=None, alternative=False):
+def script_selection(monkeypatch, fake_fit_many, refined=None, alternative=False, rival_box=False):
     """Make :func:`bouncelab.gap.select.forward_select` run on scripted fits: ``fit_many``
     is ``fake_fit_many``, the held-out gap is each fit's objective, no simulated cycles
     are counted, and the refinement's settings are ``refined`` (None: no refinement).
     One optimiser seed per job (the last round's armature seeds have a test of their own);
-    no :func:`bouncelab.gap.select.armature_alternative` unless ``alternative``."""
+    no :func:`bouncelab.gap.select.armature_alternative` unless ``alternative``, no box
+    of an armature's rival (:func:`bouncelab.gap.select._rival_boxed`) unless
+    ``rival_box``."""
     from bouncelab.gap import select
 
     if not alternative:
@@ -275,6 +277,8 @@ def script_selection(monkeypatch, fake_fit_many, refined=None, alternative=False
     monkeypatch.setattr(select, "heldout_gap", lambda fit, problem: fit.objective)
     monkeypatch.setattr(select, "refine_settings", lambda *a, **k: refined)
     monkeypatch.setattr(select, "spent_cycles", lambda *a, **k: 0.0)
+    if not rival_box:
+        monkeypatch.setattr(select, "_rival_boxed", lambda tried, *a, **k: (tried, None))
     # no box refinement unless a test scripts one
     monkeypatch.setattr(select, "box_refinement", lambda fit, *a, **k: (fit, {"kept": False}))
 

@@ -823,6 +823,8 @@ def diagnose_flights(
         # an armature taken alone against every pair of the other effects, or null
         "pair_check": sel["pair_check"],
         "pair_swap": sel["pair_swap"],
+        # an armature's best rival searched again in a box before the round chose
+        "rival_box": sel["rival_box"],
         # an armature taken alone against its other ride_load beside a Gamma miscalibration
         "armature_alternative": alternative,
         "weak_dropped": sel["weak_dropped"],

@@ -187,6 +187,9 @@ CASES = {
     # none: friction raises it to 1.15, the miscalibration brings it back to a stated
     # 1.045 (a black-box probe's case, session 80: select._pair_swap)
     "friction_gamma_scale_offset": {"g1": 5.0, "mu": 0.15, "s": 1.1, "seed": 205},
+    # outside the library: a body held on the plate through each 100-us impact at 80 Hz
+    # (0.05 rad of phase), then leaving at its rebound speed (a dwell, session 81)
+    "held_contact_80hz": {"f": 80.0, "e": 0.5, "contact_s": 1e-4, "hold": True, "seed": 301},
 }  # fmt: skip
 
 

@@ -21,7 +21,9 @@ what the diagnosis assumes of our rig shows up:
 - a shaker armature kicked by impacts only (CONTRACTS.md section 5, no riding load);
 - the circuit sampled instantaneously, with white noise, either polarity, WAV or CSV;
 - outside the library: a sensor delay, a restitution that changes with impact speed,
-  random plate vibration (a sum of sinusoids of random frequencies in 5-200 Hz);
+  random plate vibration (a sum of sinusoids of random frequencies in 5-200 Hz), a body
+  held on the plate through each impact's ``contact_s`` (``hold``: a dwell; it then
+  leaves at its rebound speed relative to the plate);
 - flaws of a lab's records, which a diagnosis should see through: a circuit that misses
   a share of the short contacts (``lost_contacts``: the flights around each merge), and
   each step's Gamma read off with a random relative error (``gamma_read_sd``: the
@@ -55,14 +57,16 @@ LOST_CONTACT_MAX_S = 3e-3
 @numba.njit(cache=True)
 def integrate(
     t_end, dt, w, amp_t, amp_v, mu, e, hk, ha, hpsi, mass_ratio, f_ratio, zeta, contact_s,
-    stick_v, stick_flight_s, fs, step, e_slope, e_ref_v, vib_w, vib_a, vib_phi,
+    stick_v, stick_flight_s, fs, step, e_slope, e_ref_v, vib_w, vib_a, vib_phi, hold,
 ):  # fmt: skip
     """Contact state (1.0 closed) at each sample instant ``k / fs``, shape (n,), and the
     number of impacts. SI units; ``amp_t``/``amp_v``: the plate amplitude (m) from each
     time on (instant switches); ``step``: the armature's free propagator over ``dt``
     (:func:`armature_step`), shape (2, 2); restitution ``e + e_slope (|u| - e_ref_v)``
     at impact speed ``|u|`` (clipped to [0, 0.99]); random plate vibration: sinusoids of
-    ``vib_w`` (rad/s), ``vib_a`` (m), ``vib_phi`` (rad), shape (N,) each."""
+    ``vib_w`` (rad/s), ``vib_a`` (m), ``vib_phi`` (rad), shape (N,) each; ``hold``: the
+    body moves with the plate through each impact's ``contact_s`` and leaves at its
+    rebound speed relative to the plate then (a dwell; else it leaves at once)."""
     n_out = int(t_end * fs)
     # the vibration's phasors at t, rotated by one step each step (no trig in the loop)
     vc = np.cos(vib_phi)
@@ -79,6 +83,9 @@ def integrate(
     y = 0.0
     v = 0.0
     riding = True
+    held = False  # moving with the plate through an impact (hold)
+    held_until = -1.0
+    held_rebound = 0.0
     closed_until = -1.0
     impacts = 0
     next_sample = 0
@@ -108,6 +115,12 @@ def integrate(
             vc[j] = c
             xv1 += vib_a[j] * vs[j]
             vv1 += vib_a[j] * vib_w[j] * c
+        if held:
+            y = xp
+            v = vp
+            if t >= held_until:  # the dwell ends: the body leaves at its rebound speed
+                held = False
+                v = vp + held_rebound
         if riding:
             y = xp
             v = vp
@@ -120,7 +133,7 @@ def integrate(
         # acceleration term made the body "land" again microseconds after each takeoff)
         z1 = step[0, 0] * z + step[0, 1] * zd
         zd1 = step[1, 0] * z + step[1, 1] * zd
-        if not riding:
+        if not riding and not held:
             acc = -G * (1.0 + mu) if v > 0.0 else -G * (1.0 - mu)
             y += v * dt + 0.5 * acc * dt * dt
             v += acc * dt
@@ -146,6 +159,8 @@ def integrate(
                     short = flight < stick_flight_s
                 if rebound < stick_v or short:
                     riding = True
+                elif hold:
+                    held, held_until, held_rebound = True, t1 + contact_s, rebound
                 else:
                     v = vp1 + rebound
         z = z1
@@ -215,7 +230,7 @@ def make_case(out: Path, **opt) -> dict:
         t_end, o["dt"], w, amp_t, amp_v, o["mu"], o["e"], o["k"], o["a"], o["psi"],
         o["mass_ratio"], o["f_ratio"], o["zeta"], o["contact_s"], o["stick_v"],
         o["stick_flight_s"], o["fs"], armature_step(o["f_ratio"] * w, o["zeta"], o["dt"]),
-        o["e_slope"], o["e_ref_v"], *vibration(o["vib_rms"], o["seed"]),
+        o["e_slope"], o["e_ref_v"], *vibration(o["vib_rms"], o["seed"]), o["hold"],
     )  # fmt: skip
     n_lost = 0
     if o["lost_contacts"]:  # the circuit fails to close on some short contacts
@@ -288,7 +303,8 @@ def outside(o: dict) -> list[str]:
     a run with any of them should come out unexplained."""
     names = {"delay_s": "sensor_delay", "e_slope": "velocity_dependent_restitution"}
     out = [name for key, name in names.items() if o[key] != 0]
-    return out + (["random_vibration"] if o["vib_rms"] > 0 else [])
+    out += ["random_vibration"] if o["vib_rms"] > 0 else []
+    return out + (["held_contact"] if o["hold"] else [])
 
 
 def true_effects(o: dict) -> dict:
@@ -319,7 +335,7 @@ DEFAULTS = {
     "descending": False, "up_down": False, "no_drive": False,
     "e_slope": 0.0, "e_ref_v": 0.3, "vib_rms": 0.0,
     "lost_contacts": 0.0, "gamma_read_sd": 0.0, "shuffled": False, "skip_lo": 0.0,
-    "skip_hi": 0.0,
+    "skip_hi": 0.0, "hold": False,
 }  # fmt: skip
 
 

@@ -619,7 +619,9 @@ def _extract_run(run_dir: str | Path) -> tuple[pd.DataFrame, pd.DataFrame]:
             "the continuity circuit opening while the body rests (a dirty or loose "
             "contact); where they are most, contacts and flights read the wrong way round "
             "(set contact_level in run.yaml) or a drive channel inverted or delayed (its "
-            "phases off: drive_phase_offset_rad in run.yaml)",
+            "phases off: drive_phase_offset_rad in run.yaml); or a plate far from a sine "
+            "(a harmonic whose acceleration rivals the drive's, k^2 a near 1, moves where "
+            "the plate pushes: the diagnosis fits one)",
             rec.path,
             int(pressed.sum()),
             from_rest,
@@ -715,7 +717,9 @@ def pressed_takeoffs(flights: pd.DataFrame) -> np.ndarray:
     long contact at ``sin phi < -0.5`` is the circuit opening, not a flight: a black-box
     probe's dirty contact gave 105 such flights, 39 of them at Gamma 1.0, and no word.
     On the shipped runs none (their flights below Gamma 1 follow 45-us impacts of the
-    armature's chatter, not rests). False without drive phases.
+    armature's chatter, not rests). False without drive phases. A strong harmonic also
+    sets them off (an independent probe of k 3, a 0.15: 440 of 4097; session 82), so the
+    warning names it too.
     """
     phi = flights["phi_takeoff"].to_numpy(dtype=np.float64)
     rest = flights["contact_before_s"].to_numpy(dtype=np.float64) > PRESSED_REST_S

@@ -281,6 +281,8 @@ def script_selection(monkeypatch, fake_fit_many, refined=None, alternative=False
         monkeypatch.setattr(select, "_rival_boxed", lambda tried, *a, **k: (tried, None))
     # no box refinement unless a test scripts one
     monkeypatch.setattr(select, "box_refinement", lambda fit, *a, **k: (fit, {"kept": False}))
+    # nor a harmonic's one-cycle twin (its fresh ensembles need a real problem)
+    monkeypatch.setattr(select, "harmonic_twin", lambda fit, *a, **k: (fit, None))
 
 
 def table_fit_many(gaps: dict, params: dict, names: list | None = None):

@@ -289,6 +289,23 @@ def alternative_warnings(alternative: dict | None, floor: float) -> list[str]:
     ]
 
 
+def twin_warnings(twin: dict | None) -> list[str]:
+    """A phase warning where a harmonic and its one-cycle twin tie
+    (:func:`bouncelab.gap.select.harmonic_twin`), else none."""
+    if not twin or not twin["tie"]:
+        return []
+    kept, other = (
+        (twin["psi_after"], twin["psi_before"])
+        if twin["kept"]
+        else (twin["psi_before"], twin["psi_after"])
+    )
+    return [
+        f"psi={kept:.4g} is poorly identified: its phase one drive cycle later, "
+        f"psi={other:.4g}, fits as well ({twin['fresh_before']:.3g} against "
+        f"{twin['fresh_after']:.3g} rad on fresh ensembles)"
+    ]
+
+
 def superset_warnings(
     final: Model,
     g_final: float,
@@ -696,7 +713,7 @@ def diagnose_flights(
         prev_g = g
 
     alternative = sel["armature_alternative"]
-    lines = alternative_warnings(alternative, floor)
+    lines = alternative_warnings(alternative, floor) + twin_warnings(sel["harmonic_twin"])
     if sel["accepted"]:
         lines += superset_warnings(
             sel["final"].model,
@@ -827,6 +844,8 @@ def diagnose_flights(
         "rival_box": sel["rival_box"],
         # an armature taken alone against its other ride_load beside a Gamma miscalibration
         "armature_alternative": alternative,
+        # a half-integer harmonic against its phase one drive cycle later, or null
+        "harmonic_twin": sel["harmonic_twin"],
         "weak_dropped": sel["weak_dropped"],
         # additions whose gain was a better refit of the effects before them
         "not_earned": sel["not_earned"],

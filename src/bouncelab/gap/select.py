@@ -96,6 +96,14 @@ SEED_STRIDE = 7919
 CHOICE_DRAWS = 4
 CHOICE_SIGMAS = 2.0
 
+#: Standard errors of the paired difference of fresh objectives within which a harmonic
+#: and its one-cycle twin tie (:func:`harmonic_twin`): its phase is then reported poorly
+#: identified. Why 2: as :data:`CHOICE_SIGMAS`, a difference a fresh draw would keep.
+TWIN_TIE_SE = 2.0
+
+#: One drive cycle of phase (rad).
+TWO_PI = 2.0 * math.pi
+
 #: Relative difference of an armature parameter between the armature taken alone and
 #: :func:`armature_alternative` beyond which the parameter is reported poorly identified
 #: (issue 6's recovery goal).
@@ -1036,6 +1044,75 @@ def box_refinement(
     return (boxed if after < before else fit), info
 
 
+def one_cycle_later(params: dict) -> dict | None:
+    """``params`` with its harmonic's phase as the plate shows it one drive cycle later,
+    ``psi + 2 pi k`` (mod 2 pi); None without a harmonic or where that is ``psi`` (a
+    whole ``k``).
+
+    Why: a flight is timed on the drive's phase, so a half-integer harmonic is the same
+    plate one cycle on with ``psi + pi``: flight-time distributions barely tell the two
+    apart (only the cycles counted from each step's start do), and a search can settle on
+    either.
+    """
+    if "k" not in params or "psi" not in params:
+        return None
+    shift = (TWO_PI * float(params["k"])) % TWO_PI
+    if min(shift, TWO_PI - shift) < 1e-9:
+        return None
+    return {**params, "psi": (float(params["psi"]) + shift) % TWO_PI}
+
+
+def harmonic_twin(
+    fit: FitResult,
+    problem: Problem,
+    fixed: dict,
+    fit_settings: FitSettings,
+    seed: int,
+    pool=None,
+    progress: bool | None = None,
+    work: WorkTally | None = None,
+) -> tuple[FitResult, dict | None]:
+    """``fit`` against its harmonic's twin (:func:`one_cycle_later`), refined locally
+    from the twin's phase (no global search, ``k`` held), the two compared on the same
+    fresh ensembles (:func:`bouncelab.gap.fit.fresh_objectives`); the better is kept.
+
+    Why: on an independent probe (k 0.5, a 0.2, psi 2.0; session 82) the selection
+    reported psi 5.14, the twin 2.0 + pi, explained at 0.22 floors held out, with an
+    interval of 0.015 rad and no warning; the truth scores 0.09 on fresh ensembles.
+
+    Returns
+    -------
+    ``(fit, info)``: the fit kept and ``info`` (None where the model has no twin):
+    ``psi_before``, ``psi_after`` (the twin's refined phase), ``fresh_before``,
+    ``fresh_after`` (mean fresh objectives, rad), ``diff_se`` (the standard error of
+    their paired difference), ``kept`` (the twin's fit kept), ``tie`` (the two within
+    :data:`TWIN_TIE_SE` standard errors: the data do not tell the phases apart),
+    ``n_evals``.
+    """
+    twin = one_cycle_later(fit.model.params)
+    if twin is None:
+        return fit, None
+    choices = {k: v for k, v in fit.model.params.items() if k in CHOICES}
+    job = (problem, fit.model.name, twin, {**fixed, **choices}, (), fit_settings, seed)
+    (refit,) = fit_many([job], pool, progress, work)
+    before = fresh_objectives(fit.model, problem)
+    after = fresh_objectives(refit.model, problem)
+    diff = after - before
+    se = float(diff.std(ddof=1) / math.sqrt(diff.size)) if diff.size >= 2 else 0.0
+    kept = bool(after.mean() < before.mean())
+    info = {
+        "psi_before": float(fit.model.params["psi"]),
+        "psi_after": float(refit.model.params["psi"]),
+        "fresh_before": float(before.mean()),
+        "fresh_after": float(after.mean()),
+        "diff_se": se,
+        "kept": kept,
+        "tie": bool(abs(float(diff.mean())) <= TWIN_TIE_SE * se),
+        "n_evals": refit.n_evals,
+    }
+    return (refit if kept else fit), info
+
+
 def _without(
     problem, fit: FitResult, effect: str, fixed, fit_settings, seed, pool, work=None
 ) -> FitResult:
@@ -1497,6 +1574,15 @@ def forward_select(
                     accepted[-1] = (accepted[-1][0], current)
                 else:
                     current, final_problem, refined = base_fit, problem, None
+        twin = None
+        if accepted:
+            work.stage = "harmonic_twin"
+            current, twin = harmonic_twin(
+                current, problem, fixed, fit_settings, seed, pool, progress, work
+            )
+            if twin is not None and twin["kept"]:
+                accepted[-1] = (accepted[-1][0], current)
+                final_problem = problem
         box = None
         n_continuous = sum(p.choices is None for p in current.free)
         if (
@@ -1556,6 +1642,7 @@ def forward_select(
         "pair_swap": pair_swap,
         "rival_box": rival_box,
         "armature_alternative": alternative,
+        "harmonic_twin": twin,
         "box": box,
         "weak_dropped": weak,
         "not_earned": not_earned,

@@ -190,6 +190,22 @@ CASES = {
     # outside the library: a body held on the plate through each 100-us impact at 80 Hz
     # (0.05 rad of phase), then leaving at its rebound speed (a dwell, session 81)
     "held_contact_80hz": {"f": 80.0, "e": 0.5, "contact_s": 1e-4, "hold": True, "seed": 301},
+    # strengths beyond those above (session 82): a bouncy and a weak or strong friction,
+    # harmonics of a fifth of the drive, a heavy or stiff armature, a 20 % miscalibration
+    "restitution_high_e": {"e": 0.8, "seed": 401},
+    "friction_weak": {"mu": 0.08, "seed": 402},
+    "friction_strong": {"mu": 0.5, "g1": 6.0, "seed": 403},
+    "harmonic_strong": {"g1": 5.0, "a": 0.2, "k": 2.0, "psi": 1.0, "seed": 404},
+    "friction_restitution_bouncy": {"mu": 0.1, "e": 0.75, "seed": 405},
+    "feedback_stiff": {"mass_ratio": 0.1, "f_ratio": 1.5, "zeta": 0.1, "seed": 406},
+    "gamma_scale_large": {"s": 1.2, "seed": 407},
+    "feedback_heavy": {"mass_ratio": 0.2, "f_ratio": 0.8, "zeta": 0.3, "seed": 408},
+    "harmonic_slow_strong": {"g1": 5.0, "a": 0.2, "k": 0.5, "psi": 2.0, "seed": 409},
+    "friction_restitution_strong": {"mu": 0.4, "e": 0.7, "g1": 6.0, "seed": 410},
+    "restitution_gamma_scale_low": {"e": 0.5, "s": 0.8, "g1": 6.0, "seed": 411},
+    "friction_harmonic_k3": {"g1": 5.0, "mu": 0.2, "a": 0.15, "k": 3.0, "psi": 3.0, "seed": 412},
+    "null_15hz": {"f": 15.0, "step_s": 4.0, "seed": 413},
+    "friction_50hz": {"f": 50.0, "mu": 0.3, "seed": 414},
 }  # fmt: skip
 
 

@@ -206,6 +206,17 @@ CASES = {
     "friction_harmonic_k3": {"g1": 5.0, "mu": 0.2, "a": 0.15, "k": 3.0, "psi": 3.0, "seed": 412},
     "null_15hz": {"f": 15.0, "step_s": 4.0, "seed": 413},
     "friction_50hz": {"f": 50.0, "mu": 0.3, "seed": 414},
+    "harmonic_k4": {"g1": 6.0, "a": 0.05, "k": 4.0, "psi": 2.5, "seed": 415},
+    # a half-integer harmonic beside friction or restitution: both missed in session 82
+    # (round 1 chose the harmonic's k alone, and later rounds keep it)
+    "friction_harmonic_k1.5": {"g1": 5.0, "mu": 0.2, "a": 0.1, "k": 1.5, "psi": 4.0, "seed": 416},
+    "restitution_harmonic_k0.5": {
+        "g1": 5.0, "e": 0.4, "a": 0.15, "k": 0.5, "psi": 1.0, "seed": 417,
+    },
+    "feedback_slow": {"mass_ratio": 0.05, "f_ratio": 0.3, "zeta": 0.1, "seed": 418},
+    "friction_gamma_scale_low": {"g1": 6.0, "mu": 0.4, "s": 0.9, "seed": 419},
+    "restitution_60hz": {"f": 60.0, "e": 0.5, "seed": 420},
+    "null_g0-3_fine": {"g1": 3.0, "dg": 0.02, "step_s": 1.5, "seed": 421},
 }  # fmt: skip
 
 

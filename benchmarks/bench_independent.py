@@ -213,6 +213,16 @@ CASES = {
     "restitution_harmonic_k0.5": {
         "g1": 5.0, "e": 0.4, "a": 0.15, "k": 0.5, "psi": 1.0, "seed": 417,
     },
+    "friction_harmonic_k0.5": {"g1": 5.0, "mu": 0.2, "a": 0.1, "k": 0.5, "psi": 2.0, "seed": 424},
+    "restitution_harmonic_k2.5": {
+        "g1": 5.0, "e": 0.4, "a": 0.06, "k": 2.5, "psi": 3.0, "seed": 425,
+    },
+    # ... where a whole k beside restitution and a half-integer one beside a
+    # miscalibration are found
+    "restitution_harmonic_k3": {"g1": 5.0, "e": 0.4, "a": 0.06, "k": 3.0, "psi": 2.0, "seed": 422},
+    "harmonic_gamma_scale_k1.5": {
+        "g1": 5.0, "a": 0.1, "k": 1.5, "psi": 1.0, "s": 1.05, "seed": 423,
+    },
     "feedback_slow": {"mass_ratio": 0.05, "f_ratio": 0.3, "zeta": 0.1, "seed": 418},
     "friction_gamma_scale_low": {"g1": 6.0, "mu": 0.4, "s": 0.9, "seed": 419},
     "restitution_60hz": {"f": 60.0, "e": 0.5, "seed": 420},

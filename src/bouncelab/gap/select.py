@@ -1098,7 +1098,7 @@ def harmonic_twin(
     (refit,) = fit_many([job], pool, progress, work)
     before = fresh_objectives(fit.model, problem, CHOICE_DRAWS)
     after = fresh_objectives(refit.model, problem, CHOICE_DRAWS)
-    se = math.sqrt((before.var(ddof=1) + after.var(ddof=1)) / CHOICE_DRAWS)
+    se = math.sqrt((before.var(ddof=1) + after.var(ddof=1)) / before.size)
     resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
     gain = float(before.mean() - after.mean())
     clear = abs(gain) > max(CHOICE_SIGMAS * se, resolution)

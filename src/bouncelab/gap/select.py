@@ -456,12 +456,18 @@ def armature_choice(fits: dict[float, FitResult], kept: float, problem: Problem)
 
 def _fresh_gain(ref: np.ndarray, model: Model, problem: Problem) -> float | None:
     """How much lower ``model``'s mean fit-step objective (rad) is on :data:`CHOICE_DRAWS`
-    fresh ensembles than ``ref`` (another model's, same draws), where it is lower by more
-    than :data:`CHOICE_SIGMAS` standard errors of the difference and more than
-    :data:`bouncelab.gap.fit.DATA_RESOLUTION` of the fit steps' mean noise floor; else
-    None (the data do not tell the two apart, or ``ref`` is ahead)."""
-    vals = fresh_objectives(model, problem, CHOICE_DRAWS)
-    se = math.sqrt((ref.var(ddof=1) + vals.var(ddof=1)) / CHOICE_DRAWS)
+    fresh ensembles than ``ref`` (another model's, same draws), where clearly so
+    (:func:`_clearly_lower`); else None (the data do not tell the two apart, or ``ref``
+    is ahead)."""
+    return _clearly_lower(ref, fresh_objectives(model, problem, CHOICE_DRAWS), problem)
+
+
+def _clearly_lower(ref: np.ndarray, vals: np.ndarray, problem: Problem) -> float | None:
+    """``ref.mean() - vals.mean()`` (fresh objectives of two models on the same draws,
+    rad) where it is more than :data:`CHOICE_SIGMAS` standard errors of the difference
+    and more than :data:`bouncelab.gap.fit.DATA_RESOLUTION` of the fit steps' mean noise
+    floor; else None."""
+    se = math.sqrt((ref.var(ddof=1) + vals.var(ddof=1)) / vals.size)
     resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
     gain = float(ref.mean() - vals.mean())
     return gain if gain > max(CHOICE_SIGMAS * se, resolution) else None
@@ -1098,18 +1104,16 @@ def harmonic_twin(
     (refit,) = fit_many([job], pool, progress, work)
     before = fresh_objectives(fit.model, problem, CHOICE_DRAWS)
     after = fresh_objectives(refit.model, problem, CHOICE_DRAWS)
-    se = math.sqrt((before.var(ddof=1) + after.var(ddof=1)) / before.size)
-    resolution = DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)
-    gain = float(before.mean() - after.mean())
-    clear = abs(gain) > max(CHOICE_SIGMAS * se, resolution)
+    better = _clearly_lower(before, after, problem) is not None
+    worse = _clearly_lower(after, before, problem) is not None
     info = {
         "psi_before": float(fit.model.params["psi"]),
         "psi_after": float(refit.model.params["psi"]),
         "fresh_before": float(before.mean()),
         "fresh_after": float(after.mean()),
-        "resolution": float(resolution),
-        "kept": bool(clear and gain > 0),
-        "tie": not clear,
+        "resolution": float(DATA_RESOLUTION * problem.mean(problem.floor, problem.fit)),
+        "kept": better,
+        "tie": not (better or worse),
         "n_evals": refit.n_evals,
     }
     return (refit if info["kept"] else fit), info

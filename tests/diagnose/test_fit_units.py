@@ -283,6 +283,9 @@ def script_selection(monkeypatch, fake_fit_many, refined=None, alternative=False
     monkeypatch.setattr(select, "box_refinement", lambda fit, *a, **k: (fit, {"kept": False}))
     # nor a harmonic's one-cycle twin (its fresh ensembles need a real problem)
     monkeypatch.setattr(select, "harmonic_twin", lambda fit, *a, **k: (fit, None))
+    # and a harmonic's k is not chosen again beside the other effects
+    monkeypatch.setattr(select, "_k_beside_taken", lambda k_alone, *a, **k: k_alone)
+    monkeypatch.setattr(select, "harmonic_k_beside", lambda fit, *a, **k: (fit, None))
 
 
 def table_fit_many(gaps: dict, params: dict, names: list | None = None):

@@ -844,6 +844,8 @@ def diagnose_flights(
         "rival_box": sel["rival_box"],
         # an armature taken alone against its other ride_load beside a Gamma miscalibration
         "armature_alternative": alternative,
+        # a harmonic beside other effects against its k chosen beside them, or null
+        "harmonic_k_beside": sel["harmonic_k_beside"],
         # a half-integer harmonic against its phase one drive cycle later, or null
         "harmonic_twin": sel["harmonic_twin"],
         "weak_dropped": sel["weak_dropped"],

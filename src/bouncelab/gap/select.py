@@ -1119,6 +1119,105 @@ def harmonic_twin(
     return (refit if info["kept"] else fit), info
 
 
+def harmonic_at_each_k(held: dict, effects, job, pool, progress, work) -> list[FitResult]:
+    """The harmonic beside ``effects`` (the others' parameters held at ``held``) at each
+    ``k`` of :data:`bouncelab.gap.fit.K_CHOICES`: one fit per ``k``, in that order, with
+    only its ``a`` and ``psi`` searched. ``job``: ``(problem, fixed, fit settings, seed)``.
+
+    Why: the harmonic alone (round 1) takes the ``k`` that best mimics the rest of the gap,
+    and where friction or restitution is most of it that ``k`` is wrong; a joint fit may
+    move ``k`` only among :data:`bouncelab.gap.fit.JOINT_K_CHOICES`, which lack 1.5 and
+    2.5 (independent ``friction_harmonic_k1.5``: k 2.5, unexplained at 2.84 floors;
+    ``restitution_harmonic_k0.5``: the harmonic never taken; session 82).
+    """
+    problem, fixed, fit_settings, seed = job
+    name = model_name([*(e for e in effects if e != "harmonic"), "harmonic"])
+    held = {p: v for p, v in held.items() if p not in EFFECTS["harmonic"]}
+    jobs = [
+        (problem, name, held, {**held, **fixed, "k": k}, None, fit_settings, seed)
+        for k in K_CHOICES
+    ]
+    return fit_many(jobs, pool, progress, work)
+
+
+def _least_k(fits: list[FitResult], held: float | None = None) -> float:
+    """The ``k`` of the least fit-step objective among :func:`harmonic_at_each_k`'s fits;
+    ``held`` (a ``k`` already chosen) where none does strictly better."""
+    objectives = np.array([f.objective for f in fits])
+    if held is not None and objectives[K_CHOICES.index(held)] <= objectives.min():
+        return float(held)
+    return float(K_CHOICES[int(np.argmin(objectives))])
+
+
+def _k_beside_taken(k_alone: float, prev: dict, effects, job, pool, progress, work) -> float:
+    """The ``k`` a harmonic added beside ``effects`` is fitted with: the least objective's
+    of :func:`harmonic_at_each_k` from ``prev`` (the current fit's values), ``k_alone``
+    (round 1's, the harmonic fitted alone) where no other does strictly better."""
+    return _least_k(harmonic_at_each_k(prev, effects, job, pool, progress, work), k_alone)
+
+
+def harmonic_k_beside(
+    fit: FitResult,
+    problem: Problem,
+    fixed: dict,
+    fit_settings: FitSettings,
+    seed: int,
+    pool,
+    progress,
+    work: WorkTally,
+) -> tuple[FitResult, dict | None]:
+    """``fit`` against its harmonic at the ``k`` chosen beside its other effects
+    (:func:`harmonic_at_each_k` from ``fit``'s values): where another ``k`` does best
+    there, the model with it is refined locally (``k`` held) and replaces ``fit`` where
+    it does clearly better on the same :data:`CHOICE_DRAWS` fresh ensembles (the rule of
+    an armature's choices, :func:`_clearly_lower`).
+
+    Why: a harmonic taken in round 1 keeps the ``k`` it took alone, and the joint fits
+    cannot reach 1.5 or 2.5 (:func:`harmonic_at_each_k`); on independent
+    ``friction_harmonic_k1.5`` the final friction was right (mu 0.204 for 0.2) beside a
+    harmonic of k 2.5.
+
+    Returns
+    -------
+    ``(fit, info)``: the fit kept and ``info`` (None without a harmonic beside another
+    effect, or with ``k`` fixed): ``k_before``, ``k_best`` (the least objective beside
+    the others), ``objectives`` (``k`` -> fit-step objective, rad), ``fresh_before``,
+    ``fresh_after`` (mean fresh objectives, rad; null where ``k_best`` is ``k_before``),
+    ``kept``, ``n_evals``.
+    """
+    effects = fit.model.effects
+    if "harmonic" not in effects or len(effects) < 2 or "k" in fixed:
+        return fit, None
+    job = (problem, fixed, fit_settings, seed)
+    at_k = harmonic_at_each_k(fit.model.params, effects, job, pool, progress, work)
+    k_before = float(fit.model.params["k"])
+    k_best = _least_k(at_k, k_before)
+    info = {
+        "k_before": k_before,
+        "k_best": k_best,
+        "objectives": {str(k): float(f.objective) for k, f in zip(K_CHOICES, at_k, strict=True)},
+        "fresh_before": None,
+        "fresh_after": None,
+        "kept": False,
+        "n_evals": sum(f.n_evals for f in at_k),
+    }
+    if k_best == k_before:
+        return fit, info
+    start = {**fit.model.params, **at_k[K_CHOICES.index(k_best)].model.params}
+    choices = {k: v for k, v in start.items() if k in CHOICES}
+    refine_job = (problem, fit.model.name, start, {**fixed, **choices}, (), fit_settings, seed)
+    (refit,) = fit_many([refine_job], pool, progress, work)
+    before = fresh_objectives(fit.model, problem, CHOICE_DRAWS)
+    after = fresh_objectives(refit.model, problem, CHOICE_DRAWS)
+    info.update(
+        fresh_before=float(before.mean()),
+        fresh_after=float(after.mean()),
+        kept=_clearly_lower(before, after, problem) is not None,
+        n_evals=info["n_evals"] + refit.n_evals,
+    )
+    return (refit if info["kept"] else fit), info
+
+
 def _without(
     problem, fit: FitResult, effect: str, fixed, fit_settings, seed, pool, work=None
 ) -> FitResult:
@@ -1382,6 +1481,35 @@ def forward_select(
             return bool(reason)
 
         stop = "max_effects"
+        k_chosen_beside = None  # the k of a harmonic a later round took, chosen beside
+        k_retry, k_retried = None, False
+
+        def harmonic_k_round(todo, round1: dict, prev: dict) -> bool:
+            """Once, where a round after the first takes nothing with the current model
+            above ``explained_ratio`` floors and fitted the harmonic at round 1's ``k``:
+            that ``k`` chosen again beside the effects taken (:func:`_k_beside_taken`);
+            True where it differs (``k_retry`` set: the next round fits the harmonic
+            alone at it)."""
+            nonlocal k_retry, k_retried
+            if (
+                k_retried
+                or "harmonic" not in todo
+                or "k" not in round1
+                or "k" in fixed
+                or heldout_gap(current, problem) <= settings.explained_ratio * floor
+            ):
+                return False
+            k_retried = True
+            work.stage = "harmonic_k_round"
+            k = _k_beside_taken(
+                round1["k"], prev, effects, (problem, fixed, fit_settings, seed), pool,
+                progress, work,
+            )  # fmt: skip
+            if k == round1["k"]:
+                return False
+            k_retry = k
+            return True
+
         while len(accepted) < settings.max_effects:
             g_cur = heldout_gap(current, problem)
             if (
@@ -1412,6 +1540,8 @@ def forward_select(
                 stop = "within_floor"
                 break
             todo = [e for e in candidates if e not in effects]
+            if k_retry is not None:
+                todo = ["harmonic"]
             if strict and rounds:  # a strict round leaves the armature out (SelectSettings)
                 todo = [e for e in todo if e != "feedback"]
             if not todo:
@@ -1421,6 +1551,10 @@ def forward_select(
             work.stage = f"round {len(rounds) + 1}"
             owners, jobs = [], []
             round1 = _round1_choices(rounds)
+            k_here = None
+            if k_retry is not None:  # the harmonic alone, at the k chosen beside (harmonic_k_round)
+                k_here = round1["k"] = k_retry
+                k_retry = None
             last = len(accepted) == settings.max_effects - 1
             starts = [(eff, prev) for eff in todo]
             second = _runner_up_start(rounds, accepted, problem, floor, settings.tie)
@@ -1512,6 +1646,8 @@ def forward_select(
                     )  # fmt: skip
                 if pick is None and swap_pair():
                     continue
+                if pick is None and harmonic_k_round(todo, round1, prev):
+                    continue
                 if pick is None:
                     stop = no_gain
                     break
@@ -1539,17 +1675,33 @@ def forward_select(
                         )
                         current = _pooled_cloud(alone, current)
                         accepted[-1] = (accepted[-1][0], current)
-                        if swap_pair():
+                        if swap_pair() or harmonic_k_round(todo, round1, prev):
                             continue
                         stop = no_gain
                         break
             accepted.append((eff, best))
             effects.append(eff)
             current = best
+            if eff == "harmonic" and k_here is not None:
+                k_chosen_beside = k_here
         if pair_check is None:
             accepted, pair_check, pair_fits = check_pairs(accepted)
             if pair_check is not None and "replaced_by" in pair_check:
                 current = accepted[-1][1]
+        k_beside = None
+        if (
+            accepted
+            and current.model.params.get("k") != k_chosen_beside
+            and heldout_gap(current, problem) > settings.explained_ratio * floor
+        ):
+            # a harmonic whose k was chosen alone (round 1's, or a pair of its fits), with
+            # a gap left for another k to explain (harmonic_k_round's condition)
+            work.stage = "harmonic_k_beside"
+            current, k_beside = harmonic_k_beside(
+                current, problem, fixed, fit_settings, seed, pool, progress, work
+            )
+            if k_beside is not None and k_beside["kept"]:
+                accepted[-1] = (accepted[-1][0], current)
         final_problem, refined = problem, None
         if accepted:
             done = [base_fit] + [f for tried in rounds for _e, f in tried] + pair_fits + swap_fits
@@ -1648,6 +1800,7 @@ def forward_select(
         "pair_swap": pair_swap,
         "rival_box": rival_box,
         "armature_alternative": alternative,
+        "harmonic_k_beside": k_beside,
         "harmonic_twin": twin,
         "box": box,
         "weak_dropped": weak,

@@ -1063,6 +1063,21 @@ def one_cycle_later(params: dict) -> dict | None:
     return {**params, "psi": (float(params["psi"]) + shift) % TWO_PI}
 
 
+def _refined_from(fit: FitResult, start: dict, job, pool, progress, work):
+    """``fit``'s model refined locally from ``start`` (no global search, its discrete
+    choices held at ``start``'s), and the fresh objectives (rad, one per draw) of ``fit``
+    and of the refit on the same :data:`CHOICE_DRAWS` ensembles: ``(refit, before,
+    after)``. ``job``: ``(problem, fixed, fit settings, seed)``. The shared step of
+    :func:`harmonic_twin` and :func:`harmonic_k_beside`."""
+    problem, fixed, fit_settings, seed = job
+    choices = {k: v for k, v in start.items() if k in CHOICES}
+    local = (problem, fit.model.name, start, {**fixed, **choices}, (), fit_settings, seed)
+    (refit,) = fit_many([local], pool, progress, work)
+    before = fresh_objectives(fit.model, problem, CHOICE_DRAWS)
+    after = fresh_objectives(refit.model, problem, CHOICE_DRAWS)
+    return refit, before, after
+
+
 def harmonic_twin(
     fit: FitResult,
     problem: Problem,
@@ -1099,11 +1114,8 @@ def harmonic_twin(
     twin = one_cycle_later(fit.model.params)
     if twin is None:
         return fit, None
-    choices = {k: v for k, v in fit.model.params.items() if k in CHOICES}
-    job = (problem, fit.model.name, twin, {**fixed, **choices}, (), fit_settings, seed)
-    (refit,) = fit_many([job], pool, progress, work)
-    before = fresh_objectives(fit.model, problem, CHOICE_DRAWS)
-    after = fresh_objectives(refit.model, problem, CHOICE_DRAWS)
+    job = (problem, fixed, fit_settings, seed)
+    refit, before, after = _refined_from(fit, twin, job, pool, progress, work)
     better = _clearly_lower(before, after, problem) is not None
     worse = _clearly_lower(after, before, problem) is not None
     info = {
@@ -1204,11 +1216,7 @@ def harmonic_k_beside(
     if k_best == k_before:
         return fit, info
     start = {**fit.model.params, **at_k[K_CHOICES.index(k_best)].model.params}
-    choices = {k: v for k, v in start.items() if k in CHOICES}
-    refine_job = (problem, fit.model.name, start, {**fixed, **choices}, (), fit_settings, seed)
-    (refit,) = fit_many([refine_job], pool, progress, work)
-    before = fresh_objectives(fit.model, problem, CHOICE_DRAWS)
-    after = fresh_objectives(refit.model, problem, CHOICE_DRAWS)
+    refit, before, after = _refined_from(fit, start, job, pool, progress, work)
     info.update(
         fresh_before=float(before.mean()),
         fresh_after=float(after.mean()),
